@@ -1,0 +1,1 @@
+"""Benchmarks: mjccd against peer libraries and published figures."""

@@ -1,0 +1,15 @@
+"""mjccd: exact continuous collision detection for ellipsoid-bounded MuJoCo bodies."""
+from mjccd.cases import solve_cases
+from mjccd.ccd import Contact, collision_intervals, first_contact
+from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Motion, Rational,
+                          Rigid, Slide, Static)
+from mjccd.quadric import (Ellipsoid, SeparatingPlane, contact_point, separating_plane,
+                           static_status, static_status_many)
+
+__all__ = [
+    "Affine", "Ball", "Chain", "Contact", "Ellipsoid", "Fixed", "Free", "Hinge", "LinearAffine",
+    "Motion", "Rational", "Rigid", "SeparatingPlane", "Slide", "Static", "collision_intervals",
+    "contact_point", "first_contact", "separating_plane", "solve_cases", "static_status",
+    "static_status_many",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,363 @@
+"""Bernstein-form polynomial algebra on [0, 1] (numba kernels).
+
+Every polynomial in mjccd lives in Bernstein form: a univariate polynomial of
+degree ``n`` is the array ``c`` of its ``n + 1`` coefficients,
+``p(t) = sum_i c[i] * C(n, i) * t**i * (1 - t)**(n - i)``; a bivariate one of
+degree ``(m, n)`` is an ``(m + 1, n + 1)`` array in the basis
+``B_i^m(u) * B_j^n(t)``.  The form is numerically stable on [0, 1], its
+coefficients bound the polynomial (convex hull property) and subdivision is
+exact, which is what makes certified root finding possible.
+
+Products are computed in the *scaled* Bernstein basis (coefficients multiplied
+by their binomials), where multiplication is a plain convolution.  All kernels
+take and return plain float64 arrays and are compiled lazily with
+``cache=True``.
+"""
+import numba
+import numpy as np
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+# ---------------------------------------------------------------- binomials
+
+
+@_jit
+def binomial_row(n):
+    """The binomial coefficients C(n, 0..n) as floats."""
+    row = np.empty(n + 1)
+    row[0] = 1.0
+    for i in range(1, n + 1):
+        row[i] = row[i - 1] * (n - i + 1) / i
+    return row
+
+
+# ---------------------------------------------------------------- univariate
+
+
+@_jit
+def evaluate(c, t):
+    """Value of the Bernstein polynomial ``c`` at ``t`` (Horner in t/(1-t), O(n))."""
+    n = c.shape[0] - 1
+    if n == 0:
+        return c[0]
+    if t <= 0.5:
+        s = t / (1.0 - t)
+        acc = c[n]
+        binom = 1.0
+        for i in range(n - 1, -1, -1):
+            binom = binom * (i + 1) / (n - i)
+            acc = acc * s + binom * c[i]
+        return acc * (1.0 - t) ** n
+    s = (1.0 - t) / t
+    acc = c[0]
+    binom = 1.0
+    for i in range(1, n + 1):
+        binom = binom * (n - i + 1) / i
+        acc = acc * s + binom * c[i]
+    return acc * t ** n
+
+
+@_jit
+def subdivide(c, t):
+    """Split ``c`` at ``t`` by de Casteljau: coefficients on [0, t] and on [t, 1]."""
+    n = c.shape[0] - 1
+    work = c.copy()
+    left = np.empty(n + 1)
+    right = np.empty(n + 1)
+    left[0] = work[0]
+    right[n] = work[n]
+    for r in range(1, n + 1):
+        for i in range(n - r + 1):
+            work[i] = (1.0 - t) * work[i] + t * work[i + 1]
+        left[r] = work[0]
+        right[n - r] = work[n - r]
+    return left, right
+
+
+@_jit
+def restrict(c, a, b):
+    """Coefficients of the same polynomial reparametrised from [a, b] onto [0, 1]."""
+    if b < 1.0:
+        c, _ = subdivide(c, b)
+    if a > 0.0:
+        _, c = subdivide(c, a / b if b > 0.0 else 0.0)
+    return c
+
+
+@_jit
+def elevate(c, r):
+    """Degree elevation by ``r``: the same polynomial with degree n + r."""
+    out = c.copy()
+    for _ in range(r):
+        n = out.shape[0] - 1
+        nxt = np.empty(n + 2)
+        nxt[0] = out[0]
+        nxt[n + 1] = out[n]
+        for i in range(1, n + 1):
+            w = i / (n + 1.0)
+            nxt[i] = w * out[i - 1] + (1.0 - w) * out[i]
+        out = nxt
+    return out
+
+
+@_jit
+def derivative(c):
+    """Coefficients of dp/dt (degree n - 1)."""
+    n = c.shape[0] - 1
+    if n == 0:
+        return np.zeros(1)
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = n * (c[i + 1] - c[i])
+    return out
+
+
+@_jit
+def multiply(a, b):
+    """Product of two Bernstein polynomials (degree m + n)."""
+    m = a.shape[0] - 1
+    n = b.shape[0] - 1
+    bm = binomial_row(m)
+    bn = binomial_row(n)
+    bmn = binomial_row(m + n)
+    out = np.zeros(m + n + 1)
+    for i in range(m + 1):
+        ai = a[i] * bm[i]
+        for j in range(n + 1):
+            out[i + j] += ai * b[j] * bn[j]
+    for k in range(m + n + 1):
+        out[k] /= bmn[k]
+    return out
+
+
+@_jit
+def add(a, b):
+    """Sum of two Bernstein polynomials, elevating the lower degree."""
+    m = a.shape[0] - 1
+    n = b.shape[0] - 1
+    if m < n:
+        a = elevate(a, n - m)
+    elif n < m:
+        b = elevate(b, m - n)
+    return a + b
+
+
+@_jit
+def bounds(c):
+    """Lower and upper bound of the polynomial on [0, 1] (convex hull property)."""
+    return c.min(), c.max()
+
+
+@_jit
+def from_power(p):
+    """Bernstein coefficients (degree len(p) - 1) of ``sum_k p[k] t**k``."""
+    n = p.shape[0] - 1
+    bn = binomial_row(n)
+    out = np.zeros(n + 1)
+    for i in range(n + 1):
+        acc = 0.0
+        bi = binomial_row(i)
+        for k in range(i + 1):
+            acc += bi[k] / bn[k] * p[k]
+        out[i] = acc
+    return out
+
+
+# ---------------------------------------------------------------- root finding
+
+
+@_jit
+def _hull_crossing(c, lo_only):
+    """Where the convex hull of the control points (i/n, c[i]) meets zero.
+
+    Returns (alpha, beta); (2, -1) when the hull misses the axis.  With
+    ``lo_only`` the upper end is left at 1 (only the first root matters).
+    """
+    n = c.shape[0] - 1
+    alpha = 2.0
+    beta = -1.0
+    for i in range(n + 1):
+        ci = c[i]
+        if ci == 0.0:
+            x = i / n
+            alpha = min(alpha, x)
+            beta = max(beta, x)
+            continue
+        for j in range(i + 1, n + 1):
+            cj = c[j]
+            if (ci > 0.0) != (cj > 0.0) and cj != 0.0:
+                x = (i + (j - i) * ci / (ci - cj)) / n
+                if x < alpha:
+                    alpha = x
+                if x > beta:
+                    beta = x
+    if lo_only and alpha <= 1.0:
+        beta = 1.0
+    return alpha, beta
+
+
+@_jit
+def first_root(c, tol):
+    """Smallest root of the Bernstein polynomial ``c`` in [0, 1], or -1.
+
+    Bézier clipping: the part of the interval where the convex hull of the
+    control polygon stays off zero is discarded; when clipping stalls the
+    interval is halved and the left half searched first.  The returned value
+    is the lower end of the first interval of width <= ``tol`` that could not
+    be excluded, so the polynomial has no root before it (up to rounding).
+    """
+    n = c.shape[0] - 1
+    if n == 0:
+        return 0.0 if c[0] == 0.0 else -1.0
+    max_depth = 200
+    stack_c = np.empty((max_depth, n + 1))
+    stack_lo = np.empty(max_depth)
+    stack_hi = np.empty(max_depth)
+    top = 0
+    stack_c[0, :] = c
+    stack_lo[0] = 0.0
+    stack_hi[0] = 1.0
+    top = 1
+    while top > 0:
+        top -= 1
+        cur = stack_c[top].copy()
+        lo = stack_lo[top]
+        hi = stack_hi[top]
+        while True:
+            cmin = cur.min()
+            cmax = cur.max()
+            if cmin > 0.0 or cmax < 0.0:
+                break  # no root on [lo, hi]
+            width = hi - lo
+            if width <= tol:
+                return lo
+            alpha, beta = _hull_crossing(cur, False)
+            if alpha > beta:
+                break
+            alpha = max(alpha, 0.0)
+            beta = min(beta, 1.0)
+            if beta - alpha > 0.7:
+                # clipping does not shrink enough: bisect, left half first
+                left, right = subdivide(cur, 0.5)
+                mid = lo + 0.5 * width
+                if top < max_depth:
+                    stack_c[top, :] = right
+                    stack_lo[top] = mid
+                    stack_hi[top] = hi
+                    top += 1
+                cur = left
+                hi = mid
+                continue
+            cur = restrict(cur, alpha, beta)
+            new_lo = lo + alpha * width
+            new_hi = lo + beta * width
+            lo, hi = new_lo, max(new_hi, new_lo)
+            if hi - lo <= tol:
+                return lo
+    return -1.0
+
+
+# ---------------------------------------------------------------- bivariate
+
+
+@_jit
+def bivariate_at_u(F, u):
+    """Univariate polynomial in t: F(u, .) for fixed u (coefficients in t)."""
+    m = F.shape[0] - 1
+    n = F.shape[1] - 1
+    bm = binomial_row(m)
+    out = np.zeros(n + 1)
+    for i in range(m + 1):
+        w = bm[i] * u ** i * (1.0 - u) ** (m - i)
+        for j in range(n + 1):
+            out[j] += w * F[i, j]
+    return out
+
+
+@_jit
+def bivariate_at_t(F, t):
+    """Univariate polynomial in u: F(., t) for fixed t (coefficients in u)."""
+    m = F.shape[0] - 1
+    out = np.empty(m + 1)
+    for i in range(m + 1):
+        out[i] = evaluate(F[i], t)
+    return out
+
+
+@_jit
+def bivariate_restrict_t(F, a, b):
+    """F reparametrised in t from [a, b] onto [0, 1]."""
+    out = np.empty_like(F)
+    for i in range(F.shape[0]):
+        out[i] = restrict(F[i].copy(), a, b)
+    return out
+
+
+@_jit
+def bivariate_derivative_t(F):
+    """dF/dt in bivariate Bernstein form (degree (m, n - 1))."""
+    m = F.shape[0] - 1
+    n = F.shape[1] - 1
+    out = np.empty((m + 1, max(n, 1)))
+    if n == 0:
+        out[:, 0] = 0.0
+        return out
+    for i in range(m + 1):
+        for j in range(n):
+            out[i, j] = n * (F[i, j + 1] - F[i, j])
+    return out
+
+
+@_jit
+def to_scaled(F):
+    """Bivariate coefficients times C(m, i) C(n, j): products become convolutions."""
+    m = F.shape[0] - 1
+    n = F.shape[1] - 1
+    bm = binomial_row(m)
+    bn = binomial_row(n)
+    out = np.empty_like(F)
+    for i in range(m + 1):
+        for j in range(n + 1):
+            out[i, j] = F[i, j] * bm[i] * bn[j]
+    return out
+
+
+@_jit
+def from_scaled(S):
+    """Inverse of :func:`to_scaled`."""
+    m = S.shape[0] - 1
+    n = S.shape[1] - 1
+    bm = binomial_row(m)
+    bn = binomial_row(n)
+    out = np.empty_like(S)
+    for i in range(m + 1):
+        for j in range(n + 1):
+            out[i, j] = S[i, j] / (bm[i] * bn[j])
+    return out
+
+
+@_jit
+def scaled_multiply(A, B):
+    """Product of two bivariate polynomials given in scaled Bernstein form."""
+    ma, na = A.shape[0], A.shape[1]
+    mb, nb = B.shape[0], B.shape[1]
+    out = np.zeros((ma + mb - 1, na + nb - 1))
+    for i1 in range(ma):
+        for i2 in range(mb):
+            for j1 in range(na):
+                a = A[i1, j1]
+                if a == 0.0:
+                    continue
+                for j2 in range(nb):
+                    out[i1 + i2, j1 + j2] += a * B[i2, j2]
+    return out
+
+
+@_jit
+def bivariate_elevate_t(F, r):
+    """Elevate the t-degree of a bivariate polynomial by ``r``."""
+    out = np.empty((F.shape[0], F.shape[1] + r))
+    for i in range(F.shape[0]):
+        out[i] = elevate(F[i].copy(), r)
+    return out

@@ -1,0 +1,75 @@
+"""The ``mjccd`` command line: ``solve`` JSON cases, run ``bench`` suites.
+
+Every failure is reported as one line on stderr with a non-zero exit status;
+no traceback reaches the user.
+"""
+import argparse
+import json
+import sys
+
+
+def _cmd_solve(args):
+    from mjccd.cases import solve_cases
+
+    try:
+        with open(args.cases) as fh:
+            doc = json.load(fh)
+    except OSError as exc:
+        print(f"mjccd solve: cannot read {args.cases}: {exc.strerror}", file=sys.stderr)
+        return 2
+    except json.JSONDecodeError as exc:
+        print(f"mjccd solve: {args.cases} is not valid JSON: {exc}", file=sys.stderr)
+        return 2
+    try:
+        results = solve_cases(doc)
+    except ValueError as exc:
+        print(f"mjccd solve: {args.cases}: {exc}", file=sys.stderr)
+        return 2
+    text = json.dumps(results, indent=1)
+    if args.output:
+        with open(args.output, "w") as fh:
+            fh.write(text + "\n")
+    else:
+        print(text)
+    failed = [r for r in results["results"] if "error" in r]
+    for r in failed:
+        print(f"error: {r['error']}", file=sys.stderr)
+    if args.output or failed:
+        n = len(results["results"])
+        print(f"solved {n - len(failed)}/{n} cases" + (f", {len(failed)} failed" if failed else ""),
+              file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _cmd_bench(args):
+    if args.suite == "core":
+        from mjccd.bench.core import main as bench_main
+    else:
+        from mjccd.patches.bench import main as bench_main
+    return bench_main(args.rest)
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(prog="mjccd", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    solve = sub.add_parser("solve", help="solve CCD cases given as JSON (format version 1)")
+    solve.add_argument("cases", help="input JSON: {\"version\": 1, \"cases\": [...]}")
+    solve.add_argument("-o", "--output", help="write results here instead of stdout")
+    solve.set_defaults(func=_cmd_solve)
+    bench = sub.add_parser("bench", help="measure speed and accuracy against peers")
+    bench.add_argument("suite", choices=["core", "patches"])
+    bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the suite (--help)")
+    bench.set_defaults(func=_cmd_bench)
+    return parser
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("mjccd: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # last line of defence: one line, never a traceback
+        print(f"mjccd {args.command}: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 1

@@ -1,0 +1,525 @@
+"""Motion models, each turned exactly into polynomial quadric matrices over t in [0, 1].
+
+A moving ellipsoid is ``X^T A(t) X <= 0`` with
+
+    A(t) = [[P(t), U(t)], [U(t)^T, s(t)]]      (up to a positive factor)
+
+where P (3x3), U (3) and s are polynomials in t, kept in Bernstein form.  No
+motion is sampled or fitted: rational rigid motions are written through the
+*scaled inverse* ``W(t) = c(t) M(t)^-1 = [[G, h], [0, g]]`` with polynomial
+G, h, g, so that ``c^2 A = W^T diag(D, -1) W`` (``D = diag(1/a^2, 1/b^2, 1/c^2)``);
+compositions (chains) multiply the W's.
+
+Degrees in t of (P, U, s): static (0, 0, 0); rigid (4, 5, 6); affine
+(1, 2, 3); linear_affine (4, 5, 6); a chain of k rotating joints
+(4k, 4k, 4k) at most.
+"""
+import numba
+import numpy as np
+
+from mjccd import _validate
+from mjccd import bernstein as bz
+from mjccd.quadric import quat_to_matrix
+
+_jit = numba.njit(cache=True, nogil=True)
+
+
+# ---------------------------------------------------------------- kernels
+
+
+@_jit
+def _quat_rotation_poly(qc):
+    """Unnormalised rotation ``rot(q)`` of a Bernstein quaternion ``qc`` (4, k+1) -> (3, 3, 2k+1)."""
+    w, x, y, z = qc[0], qc[1], qc[2], qc[3]
+    mul = bz.multiply
+    ww, xx, yy, zz = mul(w, w), mul(x, x), mul(y, y), mul(z, z)
+    xy, xz, yz = mul(x, y), mul(x, z), mul(y, z)
+    wx, wy, wz = mul(w, x), mul(w, y), mul(w, z)
+    n = ww.shape[0]
+    R = np.empty((3, 3, n))
+    R[0, 0] = ww + xx - yy - zz
+    R[0, 1] = 2.0 * (xy - wz)
+    R[0, 2] = 2.0 * (xz + wy)
+    R[1, 0] = 2.0 * (xy + wz)
+    R[1, 1] = ww - xx + yy - zz
+    R[1, 2] = 2.0 * (yz - wx)
+    R[2, 0] = 2.0 * (xz - wy)
+    R[2, 1] = 2.0 * (yz + wx)
+    R[2, 2] = ww - xx - yy + zz
+    return R, ww + xx + yy + zz
+
+
+@_jit
+def _matvec_poly(G, h):
+    """Polynomial matrix (3, 3, a) times polynomial vector (3, b) -> (3, a + b - 1)."""
+    n = G.shape[2] + h.shape[1] - 1
+    out = np.zeros((3, n))
+    for i in range(3):
+        for k in range(3):
+            out[i] += bz.multiply(G[i, k].copy(), h[k].copy())
+    return out
+
+
+@_jit
+def _matmul_poly(Ga, Gb):
+    """Product of two polynomial 3x3 matrices."""
+    n = Ga.shape[2] + Gb.shape[2] - 1
+    out = np.zeros((3, 3, n))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                out[i, j] += bz.multiply(Ga[i, k].copy(), Gb[k, j].copy())
+    return out
+
+
+@_jit
+def w_of_rotation(qc):
+    """Scaled inverse W of a pure rotation by the Bernstein quaternion ``qc``."""
+    R, norm2 = _quat_rotation_poly(qc)
+    n = R.shape[2]
+    G = np.empty((3, 3, n))
+    for i in range(3):
+        for j in range(3):
+            G[i, j] = R[j, i]
+    return G, np.zeros((3, 1)), norm2
+
+
+@_jit
+def w_of_translation(pc):
+    """Scaled inverse W of a pure translation by the Bernstein vector ``pc`` (3, k+1)."""
+    G = np.zeros((3, 3, 1))
+    for i in range(3):
+        G[i, i, 0] = 1.0
+    return G, -pc, np.ones(1)
+
+
+@_jit
+def w_compose(Ga, ha, ga, Gb, hb, gb):
+    """W of the composition M_a M_b, given W_a and W_b:  W = W_b W_a."""
+    G = _matmul_poly(Gb, Ga)
+    h1 = _matvec_poly(Gb, ha)
+    h2 = np.empty((3, hb.shape[1] + ga.shape[0] - 1))
+    for i in range(3):
+        h2[i] = bz.multiply(hb[i].copy(), ga)
+    deg = max(h1.shape[1], h2.shape[1]) - 1
+    h = np.empty((3, deg + 1))
+    for i in range(3):
+        h[i] = bz.elevate(h1[i].copy(), deg + 1 - h1.shape[1]) + bz.elevate(h2[i].copy(), deg + 1 - h2.shape[1])
+    return G, h, bz.multiply(gb, ga)
+
+
+@_jit
+def quadric_from_w(G, h, g, radii):
+    """(P, U, s) of an ellipsoid with radii under the motion whose scaled inverse is W."""
+    d = 1.0 / (radii * radii)
+    nG = G.shape[2]
+    nP = 2 * nG - 1
+    P = np.zeros((3, 3, nP))
+    for i in range(3):
+        for j in range(i, 3):
+            for k in range(3):
+                P[i, j] += d[k] * bz.multiply(G[k, i].copy(), G[k, j].copy())
+            P[j, i] = P[i, j]
+    nU = nG + h.shape[1] - 1
+    U = np.zeros((3, nU))
+    for i in range(3):
+        for k in range(3):
+            U[i] += d[k] * bz.multiply(G[k, i].copy(), h[k].copy())
+    hh = np.zeros(2 * h.shape[1] - 1)
+    for k in range(3):
+        hh += d[k] * bz.multiply(h[k].copy(), h[k].copy())
+    s = bz.add(hh, -bz.multiply(g, g))
+    return P, U, s
+
+
+@_jit
+def quadric_affine(radii, p0, q0, p1, q1):
+    """(P, U, s) of the thesis' affine interpolant: centre and shape matrix both lerped."""
+    d = 1.0 / (radii * radii)
+    R0 = quat_to_matrix(q0)
+    R1 = quat_to_matrix(q1)
+    P = np.zeros((3, 3, 2))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                P[i, j, 0] += R0[i, k] * R0[j, k] * d[k]
+                P[i, j, 1] += R1[i, k] * R1[j, k] * d[k]
+    c = np.empty((3, 2))
+    c[:, 0] = p0
+    c[:, 1] = p1
+    Qc = _matvec_poly(P, c)  # degree 2
+    U = -Qc
+    s = np.zeros(4)
+    for i in range(3):
+        s += bz.multiply(c[i].copy(), Qc[i].copy())
+    s = s - 1.0
+    return P, U, s
+
+
+@_jit
+def quadric_at(P, U, s, t):
+    """The 4x4 quadric matrix at time t (up to the motion's positive factor)."""
+    A = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = bz.evaluate(P[i, j], t)
+        A[i, 3] = bz.evaluate(U[i], t)
+        A[3, i] = A[i, 3]
+    A[3, 3] = bz.evaluate(s, t)
+    return A
+
+
+# ---------------------------------------------------------------- helpers
+
+
+def _linear_bernstein(v0, v1):
+    """Bernstein coefficients (..., 2) of the lerp from v0 to v1."""
+    return np.ascontiguousarray(np.stack([np.asarray(v0, float), np.asarray(v1, float)], axis=-1))
+
+
+def _aligned(q0, q1):
+    """q1 or -q1, whichever makes the lerp from q0 take the short way."""
+    return q1 if float(q0 @ q1) >= 0.0 else -q1
+
+
+def _pose_w(position, quaternion):
+    """Constant W of a fixed pose (rotation then translation)."""
+    R = quat_to_matrix(quaternion)
+    G = np.ascontiguousarray(R.T[:, :, None])
+    h = np.ascontiguousarray((-R.T @ position)[:, None])
+    return G, h, np.ones(1)
+
+
+def _nonvanishing(poly_power, field):
+    """Reject a power-basis polynomial that has a root in [0, 1]."""
+    c = bz.from_power(poly_power)
+    if c.min() > 0.0 or c.max() < 0.0:
+        return
+    roots = np.roots(poly_power[::-1]) if len(poly_power) > 1 else np.array([])
+    for r in roots:
+        if abs(r.imag) < 1e-9 and -1e-12 <= r.real <= 1.0 + 1e-12:
+            raise ValueError(f"{field}: vanishes at t = {r.real:.6g} in [0, 1]")
+    if len(poly_power) == 1 and poly_power[0] == 0.0:
+        raise ValueError(f"{field}: is identically zero")
+
+
+def _pose_from_json(d, field):
+    if not isinstance(d, dict):
+        raise ValueError(f"{field}: expected an object with position and quaternion")
+    for key in ("position", "quaternion"):
+        if key not in d:
+            raise ValueError(f"{field}.{key}: missing")
+    return (_validate.vector(d["position"], 3, f"{field}.position"),
+            _validate.quaternion(d["quaternion"], f"{field}.quaternion"))
+
+
+# ---------------------------------------------------------------- motion models
+
+
+class Motion:
+    """Base class: a motion of an ellipsoid's frame over normalised time t in [0, 1]."""
+
+    kind = "motion"
+
+    def quadric(self, radii):
+        """(P, U, s) Bernstein arrays of the ellipsoid with these radii under this motion."""
+        raise NotImplementedError
+
+    def center_control_points(self):
+        """Control points (k, 3) and positive weights (k,) of the rational Bézier path of the centre."""
+        raise NotImplementedError
+
+
+class _WMotion(Motion):
+    """A motion given by its scaled inverse W(t) = c(t) M(t)^-1."""
+
+    def __init__(self, G, h, g):
+        self._w = (np.ascontiguousarray(G), np.ascontiguousarray(h), np.ascontiguousarray(g))
+
+    def quadric(self, radii):
+        return quadric_from_w(*self._w, np.asarray(radii, float))
+
+    def transform(self, t):
+        """World 3x4 matrix [L | v] of the frame at time t."""
+        G, h, g = self._w
+        Gt = np.array([[bz.evaluate(G[i, j], t) for j in range(3)] for i in range(3)])
+        ht = np.array([bz.evaluate(h[i], t) for i in range(3)])
+        gt = bz.evaluate(g, t)
+        L = np.linalg.inv(Gt / gt)
+        return np.hstack([L, (-L @ (ht / gt))[:, None]])
+
+
+class Static(_WMotion):
+    """A fixed pose."""
+
+    kind = "static"
+
+    def __init__(self, position, quaternion=(1.0, 0.0, 0.0, 0.0)):
+        self.position = _validate.vector(position, 3, "position")
+        self.quaternion = _validate.quaternion(quaternion, "quaternion")
+        super().__init__(*_pose_w(self.position, self.quaternion))
+
+    def center_control_points(self):
+        return self.position[None, :].copy(), np.ones(1)
+
+
+class Rigid(_WMotion):
+    """Centre lerp and quaternion lerp: ``R(t) = rot(q(t)) / |q(t)|^2``, rational of degree 2."""
+
+    kind = "rigid"
+
+    def __init__(self, position0, quaternion0, position1, quaternion1):
+        self.position0 = _validate.vector(position0, 3, "start.position")
+        self.quaternion0 = _validate.quaternion(quaternion0, "start.quaternion")
+        self.position1 = _validate.vector(position1, 3, "end.position")
+        self.quaternion1 = _aligned(self.quaternion0, _validate.quaternion(quaternion1, "end.quaternion"))
+        rot = w_of_rotation(_linear_bernstein(self.quaternion0, self.quaternion1))
+        shift = w_of_translation(_linear_bernstein(self.position0, self.position1))
+        super().__init__(*w_compose(*shift, *rot))
+
+    def center_control_points(self):
+        return np.stack([self.position0, self.position1]), np.ones(2)
+
+
+class Affine(Motion):
+    """The thesis' affine interpolant: centre and shape matrix ``Q = R D R^T`` both lerped."""
+
+    kind = "affine"
+
+    def __init__(self, position0, quaternion0, position1, quaternion1):
+        self.position0 = _validate.vector(position0, 3, "start.position")
+        self.quaternion0 = _validate.quaternion(quaternion0, "start.quaternion")
+        self.position1 = _validate.vector(position1, 3, "end.position")
+        self.quaternion1 = _validate.quaternion(quaternion1, "end.quaternion")
+
+    def quadric(self, radii):
+        return quadric_affine(np.asarray(radii, float), self.position0, self.quaternion0,
+                              self.position1, self.quaternion1)
+
+    def center_control_points(self):
+        return np.stack([self.position0, self.position1]), np.ones(2)
+
+
+class LinearAffine(_WMotion):
+    """``x = ((1 - t) M0 + t M1) [y; 1]`` with 3x4 matrices: every point moves on a line."""
+
+    kind = "linear_affine"
+
+    def __init__(self, start, end):
+        self.start = _validate.array(start, (3, 4), "start")
+        self.end = _validate.array(end, (3, 4), "end")
+        Lc = _linear_bernstein(self.start[:, :3], self.end[:, :3])  # (3, 3, 2)
+        # det L(t) is a cubic: it must keep its sign over [0, 1].
+        det_power = np.polynomial.polynomial.polyfit(
+            np.linspace(0, 1, 4), [np.linalg.det((1 - t) * self.start[:, :3] + t * self.end[:, :3])
+                                   for t in np.linspace(0, 1, 4)], 3)
+        _nonvanishing(det_power, "start/end: det of the linear part")
+        adj = np.empty((3, 3, 3))
+        for i in range(3):
+            for j in range(3):
+                r = [k for k in range(3) if k != j]
+                c = [k for k in range(3) if k != i]
+                minor = bz.add(bz.multiply(Lc[r[0], c[0]].copy(), Lc[r[1], c[1]].copy()),
+                               -bz.multiply(Lc[r[0], c[1]].copy(), Lc[r[1], c[0]].copy()))
+                adj[i, j] = minor if (i + j) % 2 == 0 else -minor
+        det = sum(bz.multiply(Lc[0, k].copy(), adj[k, 0].copy()) for k in range(3))
+        v = _linear_bernstein(self.start[:, 3], self.end[:, 3])
+        h = -_matvec_poly(adj, v)
+        super().__init__(adj, h, det)
+
+    def center_control_points(self):
+        return np.stack([self.start[:, 3], self.end[:, 3]]), np.ones(2)
+
+
+class Rational(_WMotion):
+    """A rational rigid motion ``x = R(t) y + V(t)`` (thesis §5.1).
+
+    ``R = rotation(t) / rotation_denominator(t)``, ``V = translation(t) /
+    translation_denominator(t)``; all polynomials in power basis, lowest
+    degree first.  R must be a rotation for every t (checked exactly as a
+    polynomial identity ``rotation rotation^T = denominator^2 I``).
+    """
+
+    kind = "rational"
+
+    def __init__(self, rotation, rotation_denominator, translation, translation_denominator=(1.0,)):
+        if not isinstance(rotation, (list, tuple, np.ndarray)) or len(rotation) != 3 \
+                or any(not isinstance(r, (list, tuple, np.ndarray)) or len(r) != 3 for r in rotation):
+            raise ValueError("rotation: expected a 3x3 array of polynomials")
+        rot = [[_validate.polynomial(rotation[i][j], f"rotation[{i}][{j}]") for j in range(3)] for i in range(3)]
+        rd = _validate.polynomial(rotation_denominator, "rotation_denominator")
+        if not isinstance(translation, (list, tuple, np.ndarray)) or len(translation) != 3:
+            raise ValueError("translation: expected 3 polynomials")
+        tr = [_validate.polynomial(translation[i], f"translation[{i}]") for i in range(3)]
+        vd = _validate.polynomial(translation_denominator, "translation_denominator")
+        _nonvanishing(rd, "rotation_denominator")
+        _nonvanishing(vd, "translation_denominator")
+        self._check_rotation(rot, rd)
+        deg_r = max(len(p) for row in rot for p in row) - 1
+        deg_r = max(deg_r, len(rd) - 1)
+        deg_v = max(max(len(p) for p in tr) - 1, len(vd) - 1)
+
+        def bern(p, deg):
+            return bz.from_power(np.pad(p, (0, deg + 1 - len(p))))
+
+        Rn = np.array([[bern(rot[i][j], deg_r) for j in range(3)] for i in range(3)])
+        Vn = np.array([bern(tr[i], deg_v) for i in range(3)])
+        rdb, vdb = bern(rd, deg_r), bern(vd, deg_v)
+        G = np.empty((3, 3, deg_r + deg_v + 1))
+        for i in range(3):
+            for j in range(3):
+                G[i, j] = bz.multiply(Rn[j, i].copy(), vdb)
+        RnT = np.ascontiguousarray(np.transpose(Rn, (1, 0, 2)))
+        h = -_matvec_poly(RnT, Vn)
+        super().__init__(G, h, bz.multiply(rdb, vdb))
+        self.rotation, self.rotation_denominator = rot, rd
+        self.translation, self.translation_denominator = tr, vd
+
+    @staticmethod
+    def _check_rotation(rot, rd):
+        P = np.polynomial.polynomial
+        rd2 = P.polymul(rd, rd)
+        scale = max(np.abs(rd2).max(), 1e-300)
+        for i in range(3):
+            for j in range(3):
+                acc = np.zeros(1)
+                for k in range(3):
+                    acc = P.polyadd(acc, P.polymul(rot[i][k], rot[j][k]))
+                if i == j:
+                    acc = P.polysub(acc, rd2)
+                if np.abs(acc).max() > 1e-9 * scale:
+                    raise ValueError(f"rotation: not orthogonal (row {i} . row {j} differs from "
+                                     f"{'the denominator squared' if i == j else '0'} by "
+                                     f"{np.abs(acc).max():.3g})")
+        R0 = np.array([[P.polyval(0.0, rot[i][j]) for j in range(3)] for i in range(3)]) / P.polyval(0.0, rd)
+        if np.linalg.det(R0) < 0.0:
+            raise ValueError("rotation: is a reflection (determinant -1), not a rotation")
+
+    def center_control_points(self):
+        G, h, g = self._w
+        # centre = -G^-1 h; as a rational curve it is translation / translation_denominator
+        deg = max(len(p) for p in self.translation)
+        deg = max(deg, len(self.translation_denominator)) - 1
+        pts = np.array([bz.from_power(np.pad(p, (0, deg + 1 - len(p)))) for p in self.translation])
+        w = bz.from_power(np.pad(self.translation_denominator, (0, deg + 1 - len(self.translation_denominator))))
+        if w.min() < 0:
+            w, pts = -w, -pts
+        return (pts / w).T, w
+
+
+# ---------------------------------------------------------------- chains
+
+
+class Fixed:
+    """Constant transform x -> R(q) x + p inside a chain."""
+
+    def __init__(self, position, quaternion=(1.0, 0.0, 0.0, 0.0)):
+        self.position = _validate.vector(position, 3, "position")
+        self.quaternion = _validate.quaternion(quaternion, "quaternion")
+
+    def w(self):
+        return _pose_w(self.position, self.quaternion)
+
+
+class Hinge:
+    """Rotation about ``axis`` (through the frame origin) with tan(theta/2) linear in t."""
+
+    def __init__(self, axis, angle0, angle1):
+        axis = _validate.vector(axis, 3, "axis")
+        n = float(np.linalg.norm(axis))
+        if n < 1e-12:
+            raise ValueError("axis: zero vector")
+        self.axis = axis / n
+        for name, a in (("angle[0]", angle0), ("angle[1]", angle1)):
+            if not np.isfinite(a) or abs(a) >= np.pi:
+                raise ValueError(f"{name}: hinge angle must be finite with |angle| < pi, got {a}")
+        self.angle0, self.angle1 = float(angle0), float(angle1)
+
+    def w(self):
+        tau = _linear_bernstein(np.tan(self.angle0 / 2), np.tan(self.angle1 / 2))
+        qc = np.empty((4, 2))
+        qc[0] = 1.0
+        qc[1:] = self.axis[:, None] * tau[None, :]
+        return w_of_rotation(qc)
+
+
+class Slide:
+    """Translation ``s(t) * axis`` with s linear in t."""
+
+    def __init__(self, axis, displacement0, displacement1):
+        axis = _validate.vector(axis, 3, "axis")
+        n = float(np.linalg.norm(axis))
+        if n < 1e-12:
+            raise ValueError("axis: zero vector")
+        self.axis = axis / n
+        self.displacement0 = float(_validate.array(displacement0, (), "displacement[0]"))
+        self.displacement1 = float(_validate.array(displacement1, (), "displacement[1]"))
+
+    def w(self):
+        return w_of_translation(_linear_bernstein(self.axis * self.displacement0, self.axis * self.displacement1))
+
+
+class Ball:
+    """Free rotation with quaternion lerp (as in :class:`Rigid`)."""
+
+    def __init__(self, quaternion0, quaternion1):
+        self.quaternion0 = _validate.quaternion(quaternion0, "start")
+        self.quaternion1 = _aligned(self.quaternion0, _validate.quaternion(quaternion1, "end"))
+
+    def w(self):
+        return w_of_rotation(_linear_bernstein(self.quaternion0, self.quaternion1))
+
+
+class Free(Rigid):
+    """A free joint inside a chain: the same interpolation as :class:`Rigid`."""
+
+    def w(self):
+        return self._w
+
+
+class Chain(_WMotion):
+    """Articulated composition ``x = E1(E2(...En(y)))``: the first element is closest to the world.
+
+    Elements are :class:`Fixed`, :class:`Hinge`, :class:`Slide`, :class:`Ball`
+    and :class:`Free`.  The result is exact; its degree grows with the
+    number of moving joints (each rotating joint adds 2 to the rational
+    degree of the rotation).
+    """
+
+    kind = "chain"
+
+    def __init__(self, elements):
+        elements = list(elements)
+        if not elements:
+            raise ValueError("elements: a chain needs at least one element")
+        W = None
+        for k, el in enumerate(elements):
+            if not hasattr(el, "w"):
+                raise ValueError(f"elements[{k}]: not a chain element: {el!r}")
+            Wk = el.w()
+            W = Wk if W is None else w_compose(*W, *Wk)
+        self.elements = elements
+        super().__init__(*W)
+
+    def center_control_points(self):
+        G, h, g = self._w
+        # The centre is -G^-1 h = -adj(G) h / det(G): a rational Bézier curve.
+        deg_g = G.shape[2] - 1
+        adj = np.empty((3, 3, 2 * deg_g + 1))
+        for i in range(3):
+            for j in range(3):
+                r = [k for k in range(3) if k != j]
+                c = [k for k in range(3) if k != i]
+                minor = bz.add(bz.multiply(G[r[0], c[0]].copy(), G[r[1], c[1]].copy()),
+                               -bz.multiply(G[r[0], c[1]].copy(), G[r[1], c[0]].copy()))
+                adj[i, j] = minor if (i + j) % 2 == 0 else -minor
+        det = sum(bz.multiply(G[0, k].copy(), adj[k, 0].copy()) for k in range(3))
+        num = -_matvec_poly(adj, h)
+        deg = max(num.shape[1], det.shape[0]) - 1
+        num = np.array([bz.elevate(num[i].copy(), deg + 1 - num.shape[1]) for i in range(3)])
+        det = bz.elevate(det.copy(), deg + 1 - det.shape[0])
+        if det.min() <= 0.0:
+            det, num = -det, -num
+        if det.min() <= 0.0:
+            raise ValueError("chain: centre path has no positive-weight Bézier form")
+        return (num / det).T, det

@@ -164,21 +164,23 @@ def shoot_first_contact(F, Fabs, noise, t_start, t_max):
     _, _, u = status_at(F, Fabs, noise, t)
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
-            return -1.0, 0.0
+            break
         h = bz.bivariate_at_u(F, u)
         if t > 0.0 or t_max < 1.0:
             h = bz.restrict(h, t, t_max)
-        if h.min() > 0.0:
-            return -1.0, 0.0
-        r = bz.first_root(h, SHOOT_TOL)
+        r = -1.0 if h.min() > 0.0 else bz.first_root(h, SHOOT_TOL)
         if r < 0.0:
-            return -1.0, 0.0
+            break
         t_new = t + r * (t_max - t)
         code, _, u_new = status_at(F, Fabs, noise, t_new)
         if code != 1 or t_new <= t:
             return _polish_contact(F, t_new, u_new, t_max), u_new
         t, u = t_new, u_new
-    return t, u
+    # certified separate up to t_max; a touch exactly at t_max still counts
+    code, _, u_end = status_at(F, Fabs, noise, t_max)
+    if code != 1:
+        return t_max, u_end
+    return -1.0, 0.0
 
 
 # ---------------------------------------------------------------- end of an overlap
@@ -393,6 +395,12 @@ class Contact:
     status_at_start: str
 
 
+def _centre(quadric, t):
+    """Centre of the moving ellipsoid at time t: the point where the gradient of X^T A X vanishes."""
+    A = quadric_at(*quadric, t)
+    return -np.linalg.solve(A[:3, :3], A[:3, 3])
+
+
 def _reframe(quadric, origin, length):
     """Quadric polynomials in the frame x_old = length * x_new + origin, scaled to unit size.
 
@@ -402,18 +410,19 @@ def _reframe(quadric, origin, length):
     values rather than to the far-away origin or the units.
     """
     P, U, s = quadric
-    n = max(P.shape[2], U.shape[1], s.shape[0]) - 1
+    p = P.shape[2] - 1
+    q = max(p, U.shape[1] - 1)
+    r = max(q, s.shape[0] - 1)
 
-    def up(c):
+    def up(c, n):
         return bz.elevate(np.ascontiguousarray(c), n + 1 - c.shape[-1])
 
-    P2 = np.array([[up(P[i, j]) for j in range(3)] for i in range(3)])
-    U1 = np.array([up(U[i]) for i in range(3)])
-    s1 = up(s)
-    Po = np.einsum("ijk,j->ik", P2, origin)
-    Pn = P2 * length ** 2
-    Un = (Po + U1) * length
-    sn = s1 + np.einsum("i,ik->k", origin, Po) + 2.0 * np.einsum("i,ik->k", origin, U1)
+    Pq = np.array([[up(P[i, j], q) for j in range(3)] for i in range(3)])
+    Uq = np.array([up(U[i], q) for i in range(3)])
+    Po = np.einsum("ijk,j->ik", Pq, origin)
+    Pn = np.ascontiguousarray(P * length ** 2)
+    Un = (Po + Uq) * length
+    sn = up(s, r) + up(np.einsum("i,ik->k", origin, Po) + 2.0 * np.einsum("i,ik->k", origin, Uq), r)
     # balance: |det A(0)| = 1, so that F(0, t) and F(1, t) are of comparable size
     scale = abs(det4(quadric_at(Pn, Un, sn, 0.0))) ** 0.25
     if not np.isfinite(scale) or scale == 0.0:
@@ -431,12 +440,12 @@ class _Pair:
         for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
             if not isinstance(m, Motion):
                 raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
-        ca, _ = motion_a.center_control_points()
-        cb, _ = motion_b.center_control_points()
-        self.origin = 0.5 * (ca.mean(axis=0) + cb.mean(axis=0))
+        qa = motion_a.quadric(a.radii)
+        qb = motion_b.quadric(b.radii)
+        self.origin = 0.25 * sum(_centre(q, t) for q in (qa, qb) for t in (0.0, 1.0))
         self.length = float(max(a.radii.max(), b.radii.max()))
-        self.qa = _reframe(motion_a.quadric(a.radii), self.origin, self.length)
-        self.qb = _reframe(motion_b.quadric(b.radii), self.origin, self.length)
+        self.qa = _reframe(qa, self.origin, self.length)
+        self.qb = _reframe(qb, self.origin, self.length)
         self.F = build_F(*self.qa, *self.qb)
         self.Fabs = np.abs(self.F)
 

@@ -190,17 +190,23 @@ def _pose_w(position, quaternion):
     return G, h, np.ones(1)
 
 
-def _nonvanishing(poly_power, field):
-    """Reject a power-basis polynomial that has a root in [0, 1]."""
-    c = bz.from_power(poly_power)
-    if c.min() > 0.0 or c.max() < 0.0:
-        return
-    roots = np.roots(poly_power[::-1]) if len(poly_power) > 1 else np.array([])
-    for r in roots:
-        if abs(r.imag) < 1e-9 and -1e-12 <= r.real <= 1.0 + 1e-12:
-            raise ValueError(f"{field}: vanishes at t = {r.real:.6g} in [0, 1]")
-    if len(poly_power) == 1 and poly_power[0] == 0.0:
-        raise ValueError(f"{field}: is identically zero")
+def _keeps_sign(c, tol, depth=0):
+    """True when the Bernstein polynomial c stays beyond +-tol on its interval (subdivision)."""
+    if c.min() > tol or c.max() < -tol:
+        return True
+    if depth >= 40 or abs(c[0]) <= tol or abs(c[-1]) <= tol or (c[0] > 0.0) != (c[-1] > 0.0):
+        return False
+    left, right = bz.subdivide(c, 0.5)
+    return _keeps_sign(left, tol, depth + 1) and _keeps_sign(right, tol, depth + 1)
+
+
+def _nonvanishing(poly_power, field, bernstein=False):
+    """Reject a polynomial (power basis, or Bernstein) that vanishes or nearly so on [0, 1]."""
+    c = np.asarray(poly_power, float) if bernstein else bz.from_power(np.asarray(poly_power, float))
+    if not _keeps_sign(c, 1e-12 * np.abs(c).max()):
+        ts = np.linspace(0.0, 1.0, 1001)
+        vals = np.abs([bz.evaluate(c, t) for t in ts])
+        raise ValueError(f"{field}: vanishes on [0, 1] (near t = {ts[int(np.argmin(vals))]:.6g})")
 
 
 def _pose_from_json(d, field):
@@ -225,9 +231,6 @@ class Motion:
         """(P, U, s) Bernstein arrays of the ellipsoid with these radii under this motion."""
         raise NotImplementedError
 
-    def center_control_points(self):
-        """Control points (k, 3) and positive weights (k,) of the rational Bézier path of the centre."""
-        raise NotImplementedError
 
 
 class _WMotion(Motion):
@@ -259,8 +262,6 @@ class Static(_WMotion):
         self.quaternion = _validate.quaternion(quaternion, "quaternion")
         super().__init__(*_pose_w(self.position, self.quaternion))
 
-    def center_control_points(self):
-        return self.position[None, :].copy(), np.ones(1)
 
 
 class Rigid(_WMotion):
@@ -277,8 +278,6 @@ class Rigid(_WMotion):
         shift = w_of_translation(_linear_bernstein(self.position0, self.position1))
         super().__init__(*w_compose(*shift, *rot))
 
-    def center_control_points(self):
-        return np.stack([self.position0, self.position1]), np.ones(2)
 
 
 class Affine(Motion):
@@ -296,8 +295,6 @@ class Affine(Motion):
         return quadric_affine(np.asarray(radii, float), self.position0, self.quaternion0,
                               self.position1, self.quaternion1)
 
-    def center_control_points(self):
-        return np.stack([self.position0, self.position1]), np.ones(2)
 
 
 class LinearAffine(_WMotion):
@@ -309,11 +306,6 @@ class LinearAffine(_WMotion):
         self.start = _validate.array(start, (3, 4), "start")
         self.end = _validate.array(end, (3, 4), "end")
         Lc = _linear_bernstein(self.start[:, :3], self.end[:, :3])  # (3, 3, 2)
-        # det L(t) is a cubic: it must keep its sign over [0, 1].
-        det_power = np.polynomial.polynomial.polyfit(
-            np.linspace(0, 1, 4), [np.linalg.det((1 - t) * self.start[:, :3] + t * self.end[:, :3])
-                                   for t in np.linspace(0, 1, 4)], 3)
-        _nonvanishing(det_power, "start/end: det of the linear part")
         adj = np.empty((3, 3, 3))
         for i in range(3):
             for j in range(3):
@@ -323,12 +315,11 @@ class LinearAffine(_WMotion):
                                -bz.multiply(Lc[r[0], c[1]].copy(), Lc[r[1], c[0]].copy()))
                 adj[i, j] = minor if (i + j) % 2 == 0 else -minor
         det = sum(bz.multiply(Lc[0, k].copy(), adj[k, 0].copy()) for k in range(3))
+        _nonvanishing(det, "start/end: the linear part L(t) becomes singular:", bernstein=True)
         v = _linear_bernstein(self.start[:, 3], self.end[:, 3])
         h = -_matvec_poly(adj, v)
         super().__init__(adj, h, det)
 
-    def center_control_points(self):
-        return np.stack([self.start[:, 3], self.end[:, 3]]), np.ones(2)
 
 
 class Rational(_WMotion):
@@ -395,16 +386,6 @@ class Rational(_WMotion):
         if np.linalg.det(R0) < 0.0:
             raise ValueError("rotation: is a reflection (determinant -1), not a rotation")
 
-    def center_control_points(self):
-        G, h, g = self._w
-        # centre = -G^-1 h; as a rational curve it is translation / translation_denominator
-        deg = max(len(p) for p in self.translation)
-        deg = max(deg, len(self.translation_denominator)) - 1
-        pts = np.array([bz.from_power(np.pad(p, (0, deg + 1 - len(p)))) for p in self.translation])
-        w = bz.from_power(np.pad(self.translation_denominator, (0, deg + 1 - len(self.translation_denominator))))
-        if w.min() < 0:
-            w, pts = -w, -pts
-        return (pts / w).T, w
 
 
 # ---------------------------------------------------------------- chains
@@ -501,25 +482,3 @@ class Chain(_WMotion):
         self.elements = elements
         super().__init__(*W)
 
-    def center_control_points(self):
-        G, h, g = self._w
-        # The centre is -G^-1 h = -adj(G) h / det(G): a rational Bézier curve.
-        deg_g = G.shape[2] - 1
-        adj = np.empty((3, 3, 2 * deg_g + 1))
-        for i in range(3):
-            for j in range(3):
-                r = [k for k in range(3) if k != j]
-                c = [k for k in range(3) if k != i]
-                minor = bz.add(bz.multiply(G[r[0], c[0]].copy(), G[r[1], c[1]].copy()),
-                               -bz.multiply(G[r[0], c[1]].copy(), G[r[1], c[0]].copy()))
-                adj[i, j] = minor if (i + j) % 2 == 0 else -minor
-        det = sum(bz.multiply(G[0, k].copy(), adj[k, 0].copy()) for k in range(3))
-        num = -_matvec_poly(adj, h)
-        deg = max(num.shape[1], det.shape[0]) - 1
-        num = np.array([bz.elevate(num[i].copy(), deg + 1 - num.shape[1]) for i in range(3)])
-        det = bz.elevate(det.copy(), deg + 1 - det.shape[0])
-        if det.min() <= 0.0:
-            det, num = -det, -num
-        if det.min() <= 0.0:
-            raise ValueError("chain: centre path has no positive-weight Bézier form")
-        return (num / det).T, det

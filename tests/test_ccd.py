@@ -1,0 +1,251 @@
+"""The exact solver against closed forms, the thesis' example and constructed contacts."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mjccd
+
+ID = [1.0, 0.0, 0.0, 0.0]
+rng = np.random.default_rng(11)
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def random_quat():
+    q = rng.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+def sphere_times(c0, c1, cb, r):
+    """Closed-form entry and exit times of |c(t) - cb| = r for a linearly moving centre."""
+    d0 = np.asarray(c0) - cb
+    v = np.asarray(c1) - np.asarray(c0)
+    qa, qb, qc = v @ v, 2 * d0 @ v, d0 @ d0 - r * r
+    disc = qb * qb - 4 * qa * qc
+    if disc < 0:
+        return None
+    s = np.sqrt(disc)
+    return (-qb - s) / (2 * qa), (-qb + s) / (2 * qa)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_spheres_closed_form(seed):
+    r = np.random.default_rng(seed)
+    ra, rb = r.uniform(0.1, 1.0, 2)
+    cb = r.normal(size=3)
+    c0 = cb + r.normal(size=3) * 3
+    c1 = cb + r.normal(size=3) * 3
+    a = mjccd.Ellipsoid([ra] * 3)
+    b = mjccd.Ellipsoid([rb] * 3)
+    ma = mjccd.Rigid(c0, random_quat(), c1, random_quat())  # rotation is irrelevant for a sphere
+    mb = mjccd.Static(cb, random_quat())
+    times = sphere_times(c0, c1, cb, ra + rb)
+    status0 = mjccd.static_status(a, (c0, ID), b, (cb, ID))
+    intervals = mjccd.collision_intervals(a, ma, b, mb)
+    contact = mjccd.first_contact(a, ma, b, mb)
+    if status0 != "separate":
+        pytest.skip("random start overlaps")
+    if times is None or times[0] > 1 or times[1] < 0:
+        assert contact is None and intervals == []
+        return
+    t_in, t_out = times
+    assert contact.time == pytest.approx(t_in, abs=1e-9)
+    assert len(intervals) == 1
+    assert intervals[0][0] == pytest.approx(t_in, abs=1e-9)
+    assert intervals[0][1] == pytest.approx(min(t_out, 1.0), abs=1e-9)
+    c_t = np.asarray(c0) + t_in * (np.asarray(c1) - c0)
+    expected_point = c_t + ra * (cb - c_t) / np.linalg.norm(cb - c_t)
+    assert np.allclose(contact.point, expected_point, atol=1e-7)
+    assert np.allclose(contact.normal, (cb - c_t) / np.linalg.norm(cb - c_t), atol=1e-7)
+
+
+def test_sphere_passes_through_within_one_step():
+    a, b = mjccd.Ellipsoid([0.1] * 3), mjccd.Ellipsoid([0.05] * 3)
+    ma = mjccd.Rigid([-1, 0.02, 0], ID, [1, 0.02, 0], ID)
+    mb = mjccd.Static([0, 0, 0])
+    t_in, t_out = sphere_times([-1, 0.02, 0], [1, 0.02, 0], np.zeros(3), 0.15)
+    (got_in, got_out), = mjccd.collision_intervals(a, ma, b, mb)
+    assert got_in == pytest.approx(t_in, abs=1e-9)
+    assert got_out == pytest.approx(t_out, abs=1e-9)
+
+
+@pytest.mark.parametrize("t_star", [1e-12, 1e-9, 1e-6, 1e-3, 0.1, 0.5, 0.9, 1 - 1e-9, 1.0])
+def test_known_contact_time_sweep(t_star):
+    """Ellipsoids placed so that they touch exactly at t_star while translating."""
+    a, b = mjccd.Ellipsoid([0.6, 0.3, 0.2]), mjccd.Ellipsoid([0.2, 0.5, 0.4])
+    # along x they touch when the centres are 0.8 apart
+    speed = 1.0
+    x0 = -(0.8 + speed * t_star)
+    ma = mjccd.Rigid([x0, 0, 0], ID, [x0 + speed, 0, 0], ID)
+    mb = mjccd.Static([0, 0, 0])
+    contact = mjccd.first_contact(a, ma, b, mb)
+    assert contact is not None
+    assert contact.time == pytest.approx(t_star, abs=1e-9)
+    if contact.status_at_start == "separate":
+        assert np.allclose(contact.point, [-0.2, 0, 0], atol=1e-6)
+    else:  # a gap of 1e-12 at the start is inside the touching band
+        assert t_star < 1e-9 and contact.status_at_start == "touching"
+
+
+def test_thesis_example_5_1():
+    with open(os.path.join(HERE, "data", "public_cases.json")) as fh:
+        cases = {c["id"]: c for c in json.load(fh)["cases"]}
+    result = mjccd.solve_cases({"version": 1, "cases": [cases["pub-thesis-5.1"]]})["results"][0]
+    assert result["first_contact"] == pytest.approx(0.5, abs=1e-9)
+    assert np.allclose(result["contact_point"], [np.sqrt(2), 0, np.sqrt(2)], atol=1e-6)
+
+
+def test_start_touching_and_overlapping():
+    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([1, 1, 1])
+    touching = mjccd.first_contact(a, mjccd.Rigid([0, 0, 0], ID, [-1, 0, 0], ID), b, mjccd.Static([2, 0, 0]))
+    assert touching.time == 0.0 and touching.status_at_start == "touching"
+    over = mjccd.first_contact(a, mjccd.Rigid([0, 0, 0], ID, [-5, 0, 0], ID), b, mjccd.Static([1, 0, 0]))
+    assert over.time == 0.0 and over.status_at_start == "overlapping" and over.point is None
+    (t0, t1), = mjccd.collision_intervals(a, mjccd.Rigid([0, 0, 0], ID, [-5, 0, 0], ID), b, mjccd.Static([1, 0, 0]))
+    assert t0 == 0.0 and t1 == pytest.approx(0.2, abs=1e-9)  # centres 2 apart at t = 0.2
+
+
+@pytest.mark.parametrize("gap, hits", [(1e-6, False), (-1e-8, True)])
+def test_near_miss_and_shallow_graze(gap, hits):
+    """Sphere sliding past: closest distance ra + rb + gap (in units of the size 1)."""
+    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([1, 1, 1])
+    y = 2.0 + gap
+    ma = mjccd.Rigid([-3, y, 0], ID, [3, y, 0], ID)
+    contact = mjccd.first_contact(a, ma, b, mjccd.Static([0, 0, 0]))
+    assert (contact is not None) == hits
+    if hits:
+        expected = 0.5 - np.sqrt(4 - y * y) / 6
+        assert contact.time == pytest.approx(expected, abs=1e-6)
+
+
+def _hinge_angle(t, a0, a1):
+    return 2 * np.arctan((1 - t) * np.tan(a0 / 2) + t * np.tan(a1 / 2))
+
+
+def test_intervals_of_a_spinning_ellipsoid():
+    """A long ellipsoid spinning about z sweeps a sphere once or twice, symmetrically in angle."""
+    a, b = mjccd.Ellipsoid([2, 0.2, 0.2]), mjccd.Ellipsoid([0.3] * 3)
+    chain = mjccd.Chain([mjccd.Hinge([0, 0, 1], -2.0, 2.0)])
+    (t_in, t_out), = mjccd.collision_intervals(a, chain, b, mjccd.Static([1.5, 0, 0]))
+    assert _hinge_angle(t_in, -2, 2) == pytest.approx(-_hinge_angle(t_out, -2, 2), abs=1e-8)
+    assert -1.0 < _hinge_angle(t_in, -2, 2) < 0.0
+    two = mjccd.collision_intervals(a, chain, b, mjccd.Static([0, 1.5, 0]))
+    assert len(two) == 2
+    angles = [_hinge_angle(t, -2, 2) for iv in two for t in iv]
+    assert angles[0] + np.pi / 2 == pytest.approx(-(angles[1] + np.pi / 2), abs=1e-8)
+    assert angles[2] - np.pi / 2 == pytest.approx(-(angles[3] - np.pi / 2), abs=1e-8)
+
+
+def test_t_max_bounds_the_search():
+    a, b = mjccd.Ellipsoid([0.5] * 3), mjccd.Ellipsoid([0.5] * 3)
+    ma = mjccd.Rigid([-3, 0, 0], ID, [0, 0, 0], ID)
+    mb = mjccd.Static([0, 0, 0])
+    full = mjccd.first_contact(a, ma, b, mb)
+    assert full.time == pytest.approx(2 / 3, abs=1e-12)
+    assert mjccd.first_contact(a, ma, b, mb, t_max=0.6) is None
+    assert mjccd.first_contact(a, ma, b, mb, t_max=0.7).time == pytest.approx(2 / 3, abs=1e-12)
+
+
+def test_chain_equals_equivalent_rigid_motion():
+    """A ball joint behind a fixed offset is the rigid motion of that pose."""
+    a, b = mjccd.Ellipsoid([0.5, 0.2, 0.3]), mjccd.Ellipsoid([0.4, 0.4, 0.2])
+    q0, q1 = random_quat(), random_quat()
+    chain = mjccd.Chain([mjccd.Fixed([0.3, 0.1, 0]), mjccd.Ball(q0, q1)])
+    rigid = mjccd.Rigid([0.3, 0.1, 0], q0, [0.3, 0.1, 0], q1)
+    mb = mjccd.Rigid([1.5, 0, 0], ID, [0.4, 0.2, 0], ID)
+    got = np.array(mjccd.collision_intervals(a, chain, b, mb))
+    want = np.array(mjccd.collision_intervals(a, rigid, b, mb))
+    assert len(want) >= 1 and got.shape == want.shape
+    assert np.allclose(got, want, atol=1e-10)
+
+
+# ---------------------------------------------------------------- bad input
+
+
+@pytest.mark.parametrize("make, msg", [
+    (lambda: mjccd.Rigid([0, 0, np.nan], ID, [0, 0, 0], ID), "start.position: contains NaN"),
+    (lambda: mjccd.Rigid([0, 0, 0], [0, 0, 0, 0], [0, 0, 0], ID), "start.quaternion: zero quaternion"),
+    (lambda: mjccd.Static([0, 0], ID), "position: expected shape 3"),
+    (lambda: mjccd.LinearAffine(np.eye(3, 4), np.zeros((3, 4))), "vanishes"),
+    (lambda: mjccd.Rational([[[1], [1], [0]], [[0], [1], [0]], [[0], [0], [1]]], [1], [[0], [0], [0]], [1]),
+     "rotation: not orthogonal"),
+    (lambda: mjccd.Rational([[[1], [0], [0]], [[0], [1], [0]], [[0], [0], [1]]], [1, -2], [[0], [0], [0]], [1]),
+     "rotation_denominator: vanishes"),
+    (lambda: mjccd.Hinge([0, 0, 1], 0.0, 3.5), "angle"),
+    (lambda: mjccd.Hinge([0, 0, 0], 0.0, 1.0), "axis: zero vector"),
+    (lambda: mjccd.Chain([]), "at least one element"),
+])
+def test_bad_motion_input(make, msg):
+    with pytest.raises(ValueError, match=msg):
+        make()
+
+
+def test_bad_api_arguments():
+    a = mjccd.Ellipsoid([1, 1, 1])
+    m = mjccd.Static([0, 0, 0])
+    with pytest.raises(ValueError, match="t_max"):
+        mjccd.first_contact(a, m, a, mjccd.Static([3, 0, 0]), t_max=1.5)
+    with pytest.raises(ValueError, match="motion_b"):
+        mjccd.first_contact(a, m, a, "static")
+    with pytest.raises(ValueError, match="a: expected an mjccd.Ellipsoid"):
+        mjccd.first_contact([1, 1, 1], m, a, m)
+
+
+def _case(cid, **override):
+    case = {"id": cid,
+            "a": {"radii": [1, 1, 1], "motion": {"type": "rigid",
+                                                 "start": {"position": [-3, 0, 0], "quaternion": ID},
+                                                 "end": {"position": [3, 0, 0], "quaternion": ID}}},
+            "b": {"radii": [1, 1, 1], "motion": {"type": "static", "position": [0, 0, 0], "quaternion": ID}}}
+    for path, value in override.items():
+        node = case
+        keys = path.split("__")
+        for k in keys[:-1]:
+            node = node[k]
+        node[keys[-1]] = value
+    return case
+
+
+def test_solve_cases_reports_bad_cases_and_solves_the_rest():
+    doc = {"version": 1, "cases": [
+        _case("good"),
+        _case("neg-radius", a__radii=[1, -1, 1]),
+        _case("zero-quat", b__motion__quaternion=[0, 0, 0, 0]),
+        _case("no-motion", b__motion__type="teleport"),
+        {"id": "missing-b", "a": _case("x")["a"]},
+    ]}
+    results = {r["id"]: r for r in mjccd.solve_cases(doc)["results"]}
+    assert results["good"]["first_contact"] == pytest.approx(1 / 6, abs=1e-12)
+    assert results["neg-radius"]["error"] == "neg-radius: a.radii: radii must be positive, got [1.0, -1.0, 1.0]"
+    assert results["zero-quat"]["error"].startswith("zero-quat: b.motion.quaternion: zero quaternion")
+    assert "b.motion.type: unknown motion type 'teleport'" in results["no-motion"]["error"]
+    assert results["missing-b"]["error"] == "missing-b: case.b: missing"
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "mjccd", *args], capture_output=True, text=True)
+
+
+def test_cli_solve_and_errors(tmp_path):
+    good = tmp_path / "cases.json"
+    good.write_text(json.dumps({"version": 1, "cases": [_case("good"), _case("bad", a__radii=[1, 1])]}))
+    out = tmp_path / "out.json"
+    proc = run_cli("solve", str(good), "-o", str(out))
+    assert proc.returncode == 1
+    assert "Traceback" not in proc.stderr
+    assert "bad: a.radii: expected shape 3" in proc.stderr
+    results = json.loads(out.read_text())["results"]
+    assert results[0]["first_contact"] == pytest.approx(1 / 6, abs=1e-12)
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    proc = run_cli("solve", str(broken))
+    assert proc.returncode == 2 and "not valid JSON" in proc.stderr and "Traceback" not in proc.stderr
+    proc = run_cli("solve", str(tmp_path / "missing.json"))
+    assert proc.returncode == 2 and "cannot read" in proc.stderr
+    wrong_version = tmp_path / "v2.json"
+    wrong_version.write_text(json.dumps({"version": 2, "cases": []}))
+    proc = run_cli("solve", str(wrong_version))
+    assert proc.returncode == 2 and "version: expected 1" in proc.stderr

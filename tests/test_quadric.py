@@ -1,0 +1,106 @@
+"""Static tests: status, contact point and separating plane of two ellipsoids."""
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd.quadric import quat_to_matrix
+
+ID = [1.0, 0.0, 0.0, 0.0]
+rng = np.random.default_rng(3)
+
+
+def random_quat():
+    q = rng.normal(size=4)
+    return q / np.linalg.norm(q)
+
+
+@pytest.mark.parametrize("gap, expected", [(1e-6, "separate"), (0.3, "separate"), (0.0, "touching"),
+                                           (-1e-8, "overlapping"), (-0.5, "overlapping")])
+def test_status_of_spheres(gap, expected):
+    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([0.5, 0.5, 0.5])
+    d = 1.5 + gap
+    direction = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    assert mjccd.static_status(a, ([0, 0, 0], random_quat()), b, (d * direction, random_quat())) == expected
+
+
+def test_status_of_ellipsoids_along_axes():
+    a, b = mjccd.Ellipsoid([3, 1, 1]), mjccd.Ellipsoid([1, 2, 1])
+    assert mjccd.static_status(a, ([0, 0, 0], ID), b, ([4.001, 0, 0], ID)) == "separate"
+    assert mjccd.static_status(a, ([0, 0, 0], ID), b, ([4.0, 0, 0], ID)) == "touching"
+    assert mjccd.static_status(a, ([0, 0, 0], ID), b, ([3.999, 0, 0], ID)) == "overlapping"
+    # rotate b by 90 degrees about z: its long axis now points along x
+    qz = [np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)]
+    assert mjccd.static_status(a, ([0, 0, 0], ID), b, ([4.5, 0, 0], qz)) == "overlapping"
+
+
+def test_batch_matches_single():
+    K = 200
+    ra = rng.uniform(0.2, 1.0, size=(K, 3))
+    rb = rng.uniform(0.2, 1.0, size=(K, 3))
+    pa = np.hstack([rng.normal(size=(K, 3)), rng.normal(size=(K, 4))])
+    pb = np.hstack([rng.normal(size=(K, 3)), rng.normal(size=(K, 4))])
+    codes = mjccd.static_status_many(ra, pa, rb, pb)
+    names = {1: "separate", 0: "touching", -1: "overlapping"}
+    for k in range(K):
+        single = mjccd.static_status(mjccd.Ellipsoid(ra[k]), (pa[k, :3], pa[k, 3:]),
+                                     mjccd.Ellipsoid(rb[k]), (pb[k, :3], pb[k, 3:]))
+        assert names[int(codes[k])] == single
+    assert {1, -1} <= set(codes.tolist())
+
+
+def test_contact_point_of_touching_ellipsoids():
+    a, b = mjccd.Ellipsoid([3, 1, 1]), mjccd.Ellipsoid([1, 2, 1])
+    p, n = mjccd.contact_point(a, ([0, 0, 0], ID), b, ([4.0, 0, 0], ID))
+    assert np.allclose(p, [3, 0, 0], atol=1e-6)
+    assert np.allclose(n, [1, 0, 0], atol=1e-6)
+    with pytest.raises(ValueError, match="not touching"):
+        mjccd.contact_point(a, ([0, 0, 0], ID), b, ([5.0, 0, 0], ID))
+
+
+def surface_points(radii, pos, quat, n=400):
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return (quat_to_matrix(np.asarray(quat, float)) @ (v * radii).T).T + pos
+
+
+def test_separating_plane_separates():
+    for _ in range(30):
+        ra, rb = rng.uniform(0.3, 1.5, 3), rng.uniform(0.3, 1.5, 3)
+        qa, qb = random_quat(), random_quat()
+        pa = np.zeros(3)
+        direction = rng.normal(size=3)
+        direction /= np.linalg.norm(direction)
+        pb = direction * (ra.max() + rb.max() + rng.uniform(0.05, 1.0))
+        a, b = mjccd.Ellipsoid(ra), mjccd.Ellipsoid(rb)
+        plane = mjccd.separating_plane(a, (pa, qa), b, (pb, qb))
+        assert np.linalg.norm(plane.normal) == pytest.approx(1.0)
+        assert np.all(surface_points(ra, pa, qa) @ plane.normal + plane.offset < 0)
+        assert np.all(surface_points(rb, pb, qb) @ plane.normal + plane.offset > 0)
+
+
+def test_separating_plane_of_spheres_touches_closest_points():
+    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([2, 2, 2])
+    plane = mjccd.separating_plane(a, ([0, 0, 0], ID), b, ([5, 0, 0], ID))
+    assert np.allclose(plane.point_a, [1, 0, 0], atol=1e-9)
+    assert np.allclose(plane.point_b, [3, 0, 0], atol=1e-9)
+    assert np.allclose(plane.normal, [1, 0, 0], atol=1e-9)
+    with pytest.raises(ValueError, match="not separate"):
+        mjccd.separating_plane(a, ([0, 0, 0], ID), b, ([2, 0, 0], ID))
+
+
+@pytest.mark.parametrize("radii, msg", [([1, 0, 1], "positive"), ([1, -2, 1], "positive"),
+                                        ([1, np.nan, 1], "NaN"), ([1, 1], "shape")])
+def test_bad_radii(radii, msg):
+    with pytest.raises(ValueError, match=msg):
+        mjccd.Ellipsoid(radii)
+
+
+def test_bad_batch_input():
+    with pytest.raises(ValueError, match="poses_a"):
+        mjccd.static_status_many(np.ones((2, 3)), np.zeros((2, 6)), np.ones((2, 3)), np.zeros((2, 7)))
+    poses = np.zeros((2, 7))
+    poses[:, 3] = 1.0
+    bad = poses.copy()
+    bad[1, 3] = 0.0
+    with pytest.raises(ValueError, match=r"poses_b\[1\]: zero quaternion"):
+        mjccd.static_status_many(np.ones((2, 3)), poses, np.ones((2, 3)), bad)

@@ -210,7 +210,7 @@ def first_root(c, tol):
     n = c.shape[0] - 1
     if n == 0:
         return 0.0 if c[0] == 0.0 else -1.0
-    max_depth = 200
+    max_depth = 64
     stack_c = np.empty((max_depth, n + 1))
     stack_lo = np.empty(max_depth)
     stack_hi = np.empty(max_depth)

@@ -32,7 +32,7 @@ from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz
-from mjccd.motion import Motion, quadric_at
+from mjccd.motion import Motion, quadric_at, quadric_rigid
 from mjccd.quadric import (STATUS_NAMES, Ellipsoid, det4, quartic_max, status_from_max,
                            touching_point)
 
@@ -50,24 +50,38 @@ NOISE = 256 * 2.220446049250313e-16
 
 
 @_jit
-def _elevated(c, n):
-    """``c`` elevated to degree n, in scaled Bernstein form (times C(n, j))."""
-    e = bz.elevate(c.copy(), n + 1 - c.shape[0])
-    return e * bz.binomial_row(n)
-
-
-@_jit
 def _pencil_entry(a, b, n):
     """Scaled bivariate form of (1 - u) a(t) + u b(t), degree (1, n)."""
     out = np.empty((2, n + 1))
-    out[0] = _elevated(a, n)
-    out[1] = _elevated(b, n)
+    binom = bz.binomial_row(n)
+    ea = a if a.shape[0] == n + 1 else bz.elevate(a.copy(), n + 1 - a.shape[0])
+    eb = b if b.shape[0] == n + 1 else bz.elevate(b.copy(), n + 1 - b.shape[0])
+    for j in range(n + 1):
+        out[0, j] = ea[j] * binom[j]
+        out[1, j] = eb[j] * binom[j]
     return out
 
 
 @_jit
-def _mul(x, y):
-    return bz.scaled_multiply(x, y)
+def _acc(out, x, y, sign):
+    """out += sign * x * y for bivariate polynomials in scaled Bernstein form."""
+    mx, nx = x.shape
+    my, ny = y.shape
+    for i1 in range(mx):
+        for i2 in range(my):
+            for j1 in range(nx):
+                a = sign * x[i1, j1]
+                for j2 in range(ny):
+                    out[i1 + i2, j1 + j2] += a * y[i2, j2]
+
+
+@_jit
+def _cofactor(x1, y1, x2, y2):
+    """x1 y1 - x2 y2 (all of the same degree), scaled form."""
+    out = np.zeros((x1.shape[0] + y1.shape[0] - 1, x1.shape[1] + y1.shape[1] - 1))
+    _acc(out, x1, y1, 1.0)
+    _acc(out, x2, y2, -1.0)
+    return out
 
 
 @_jit
@@ -75,7 +89,8 @@ def build_F(PA, UA, sA, PB, UB, sB):
     """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)).
 
     Uses ``det [[P, U], [U^T, s]] = s det P - U^T adj(P) U`` on the pencil,
-    which keeps every intermediate at its true degree.
+    which keeps every intermediate at its true degree.  Products run in the
+    scaled Bernstein basis, where they are plain convolutions.
     """
     p = max(PA.shape[2], PB.shape[2]) - 1
     q = max(UA.shape[1], UB.shape[1]) - 1
@@ -90,23 +105,35 @@ def build_F(PA, UA, sA, PB, UB, sB):
     U1 = _pencil_entry(UA[1], UB[1], q)
     U2 = _pencil_entry(UA[2], UB[2], q)
     s = _pencil_entry(sA, sB, r)
-    C00 = _mul(P11, P22) - _mul(P12, P12)
-    C11 = _mul(P00, P22) - _mul(P02, P02)
-    C22 = _mul(P00, P11) - _mul(P01, P01)
-    C01 = _mul(P02, P12) - _mul(P01, P22)
-    C02 = _mul(P01, P12) - _mul(P02, P11)
-    C12 = _mul(P01, P02) - _mul(P00, P12)
-    detP = _mul(P00, C00) + _mul(P01, C01) + _mul(P02, C02)
-    V0 = _mul(C00, U0) + _mul(C01, U1) + _mul(C02, U2)
-    V1 = _mul(C01, U0) + _mul(C11, U1) + _mul(C12, U2)
-    V2 = _mul(C02, U0) + _mul(C12, U1) + _mul(C22, U2)
-    F1 = bz.from_scaled(_mul(s, detP))
-    F2 = bz.from_scaled(_mul(U0, V0) + _mul(U1, V1) + _mul(U2, V2))
-    n = max(F1.shape[1], F2.shape[1]) - 1
-    if F1.shape[1] <= n:
-        F1 = bz.bivariate_elevate_t(F1, n + 1 - F1.shape[1])
-    if F2.shape[1] <= n:
-        F2 = bz.bivariate_elevate_t(F2, n + 1 - F2.shape[1])
+    C00 = _cofactor(P11, P22, P12, P12)
+    C11 = _cofactor(P00, P22, P02, P02)
+    C22 = _cofactor(P00, P11, P01, P01)
+    C01 = _cofactor(P02, P12, P01, P22)
+    C02 = _cofactor(P01, P12, P02, P11)
+    C12 = _cofactor(P01, P02, P00, P12)
+    detP = np.zeros((4, 3 * p + 1))
+    _acc(detP, P00, C00, 1.0)
+    _acc(detP, P01, C01, 1.0)
+    _acc(detP, P02, C02, 1.0)
+    n1 = 3 * p + r
+    n2 = 2 * p + 2 * q
+    F1 = np.zeros((5, n1 + 1))
+    _acc(F1, s, detP, 1.0)
+    F2 = np.zeros((5, n2 + 1))
+    V = np.zeros((4, 2 * p + q + 1))
+    for Ui, Ci0, Ci1, Ci2 in ((U0, C00, C01, C02), (U1, C01, C11, C12), (U2, C02, C12, C22)):
+        V[:, :] = 0.0
+        _acc(V, Ci0, U0, 1.0)
+        _acc(V, Ci1, U1, 1.0)
+        _acc(V, Ci2, U2, 1.0)
+        _acc(F2, Ui, V, 1.0)
+    F1 = bz.from_scaled(F1)
+    F2 = bz.from_scaled(F2)
+    n = max(n1, n2)
+    if n1 < n:
+        F1 = bz.bivariate_elevate_t(F1, n - n1)
+    if n2 < n:
+        F2 = bz.bivariate_elevate_t(F2, n - n2)
     return F1 - F2
 
 
@@ -395,39 +422,84 @@ class Contact:
     status_at_start: str
 
 
-def _centre(quadric, t):
-    """Centre of the moving ellipsoid at time t: the point where the gradient of X^T A X vanishes."""
-    A = quadric_at(*quadric, t)
-    return -np.linalg.solve(A[:3, :3], A[:3, 3])
+@_jit
+def _centre(P, U, s, t):
+    """Centre of the moving ellipsoid at time t: where the gradient of X^T A X vanishes."""
+    A = quadric_at(P, U, s, t)
+    return -np.linalg.solve(A[:3, :3], A[:3, 3].copy())
 
 
-def _reframe(quadric, origin, length):
-    """Quadric polynomials in the frame x_old = length * x_new + origin, scaled to unit size.
+@_jit
+def _reframe(P, U, s, origin, length):
+    """Quadric polynomials in the frame x_old = length * x_new + origin, balanced.
 
     A rigid change of frame, a uniform scaling and a positive factor on each
-    quadric change no answer, but they balance the pencil: both matrices
-    get entries of order one, which keeps the rounding of F relative to its
-    values rather than to the far-away origin or the units.
+    quadric change no answer, but they balance the pencil: both matrices get
+    entries of order one and |det A(0)| = 1, which keeps the rounding of F
+    relative to its values rather than to a far-away origin or the units.
     """
-    P, U, s = quadric
     p = P.shape[2] - 1
     q = max(p, U.shape[1] - 1)
     r = max(q, s.shape[0] - 1)
+    Pn = P * length * length
+    Un = np.empty((3, q + 1))
+    for i in range(3):
+        acc = bz.elevate(U[i].copy(), q - U.shape[1] + 1)
+        for j in range(3):
+            acc = acc + origin[j] * bz.elevate(P[i, j].copy(), q - p)
+        Un[i] = acc * length
+    quad = np.zeros(q + 1)
+    for i in range(3):
+        quad += origin[i] * (Un[i] / length + bz.elevate(U[i].copy(), q - U.shape[1] + 1))
+    sn = bz.elevate(s.copy(), r - s.shape[0] + 1) + bz.elevate(quad, r - q)
+    return _balanced(Pn, Un, sn)
 
-    def up(c, n):
-        return bz.elevate(np.ascontiguousarray(c), n + 1 - c.shape[-1])
 
-    Pq = np.array([[up(P[i, j], q) for j in range(3)] for i in range(3)])
-    Uq = np.array([up(U[i], q) for i in range(3)])
-    Po = np.einsum("ijk,j->ik", Pq, origin)
-    Pn = np.ascontiguousarray(P * length ** 2)
-    Un = (Po + Uq) * length
-    sn = up(s, r) + up(np.einsum("i,ik->k", origin, Po) + 2.0 * np.einsum("i,ik->k", origin, Uq), r)
-    # balance: |det A(0)| = 1, so that F(0, t) and F(1, t) are of comparable size
-    scale = abs(det4(quadric_at(Pn, Un, sn, 0.0))) ** 0.25
+@_jit
+def _balanced(P, U, s):
+    """The quadric divided by |det A(0)|^(1/4): both ends of the pencil of comparable size."""
+    scale = abs(det4(quadric_at(P, U, s, 0.0))) ** 0.25
     if not np.isfinite(scale) or scale == 0.0:
-        scale = max(np.abs(Pn).max(), np.abs(Un).max(), np.abs(sn).max())
-    return Pn / scale, Un / scale, sn / scale
+        scale = max(np.abs(P).max(), np.abs(U).max(), np.abs(s).max())
+    return P / scale, U / scale, s / scale
+
+
+@_jit
+def prepare_pair(PA, UA, sA, PB, UB, sB, length):
+    """Balanced quadrics of both bodies, their common frame, and F with |F|."""
+    origin = 0.25 * (_centre(PA, UA, sA, 0.0) + _centre(PA, UA, sA, 1.0)
+                     + _centre(PB, UB, sB, 0.0) + _centre(PB, UB, sB, 1.0))
+    PA2, UA2, sA2 = _reframe(PA, UA, sA, origin, length)
+    PB2, UB2, sB2 = _reframe(PB, UB, sB, origin, length)
+    F = build_F(PA2, UA2, sA2, PB2, UB2, sB2)
+    return F, np.abs(F), origin, (PA2, UA2, sA2), (PB2, UB2, sB2)
+
+
+@_jit
+def rigid_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1, t_max):
+    """Fused kernel for two rigid motions: returns (status at start, time or -1, point, normal).
+
+    Quaternions must be unit and ``q1`` already on the side of ``q0``.  This is
+    the whole pipeline of :func:`first_contact` in one call, for batched use.
+    """
+    length = max(radii_a.max(), radii_b.max())
+    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
+    A2 = _balanced(*quadric_rigid(radii_a / length, (pa0 - origin) / length, qa0,
+                                  (pa1 - origin) / length, qa1))
+    B2 = _balanced(*quadric_rigid(radii_b / length, (pb0 - origin) / length, qb0,
+                                  (pb1 - origin) / length, qb1))
+    F = build_F(A2[0], A2[1], A2[2], B2[0], B2[1], B2[2])
+    Fabs = np.abs(F)
+    status0, intervals, u = solve_intervals(F, Fabs, NOISE, t_max, True)
+    point = np.zeros(3)
+    normal = np.zeros(3)
+    if status0 != 1:
+        return status0, 0.0, point, normal
+    if intervals.shape[0] == 0:
+        return status0, -1.0, point, normal
+    t = intervals[0, 0]
+    p, n = touching_point(quadric_at(A2[0], A2[1], A2[2], t), quadric_at(B2[0], B2[1], B2[2], t), u)
+    return status0, t, origin + length * p, n
 
 
 class _Pair:
@@ -440,14 +512,9 @@ class _Pair:
         for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
             if not isinstance(m, Motion):
                 raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
-        qa = motion_a.quadric(a.radii)
-        qb = motion_b.quadric(b.radii)
-        self.origin = 0.25 * sum(_centre(q, t) for q in (qa, qb) for t in (0.0, 1.0))
         self.length = float(max(a.radii.max(), b.radii.max()))
-        self.qa = _reframe(qa, self.origin, self.length)
-        self.qb = _reframe(qb, self.origin, self.length)
-        self.F = build_F(*self.qa, *self.qb)
-        self.Fabs = np.abs(self.F)
+        self.F, self.Fabs, self.origin, self.qa, self.qb = prepare_pair(
+            *motion_a.quadric(a.radii), *motion_b.quadric(b.radii), self.length)
 
     def solve(self, t_max, first_only):
         return solve_intervals(self.F, self.Fabs, NOISE, t_max, first_only)

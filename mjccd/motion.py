@@ -133,6 +133,77 @@ def quadric_from_w(G, h, g, radii):
 
 
 @_jit
+def quadric_rigid(radii, p0, q0, p1, q1):
+    """(P, U, s) of the rigid motion (centre lerp, quaternion lerp), without intermediate W.
+
+    ``|q|^4 A = [[R D R^T, -R D R^T p], [., p^T R D R^T p - |q|^4]]`` with
+    ``R = rot(q)`` the unnormalised rotation: P = R D R^T (degree 4),
+    U = -P p (degree 5), s = p^T P p - |q|^4 (degree 6).  Products of linear
+    and quadratic Bernstein polynomials are written out in scaled form.
+    """
+    d = 1.0 / (radii * radii)
+    # quadratic products of quaternion components (scaled Bernstein, degree 2)
+    qq = np.empty((4, 4, 3))
+    for i in range(4):
+        for j in range(4):
+            qq[i, j, 0] = q0[i] * q0[j]
+            qq[i, j, 1] = q0[i] * q1[j] + q1[i] * q0[j]
+            qq[i, j, 2] = q1[i] * q1[j]
+    R = np.empty((3, 3, 3))
+    R[0, 0] = qq[0, 0] + qq[1, 1] - qq[2, 2] - qq[3, 3]
+    R[0, 1] = 2.0 * (qq[1, 2] - qq[0, 3])
+    R[0, 2] = 2.0 * (qq[1, 3] + qq[0, 2])
+    R[1, 0] = 2.0 * (qq[1, 2] + qq[0, 3])
+    R[1, 1] = qq[0, 0] - qq[1, 1] + qq[2, 2] - qq[3, 3]
+    R[1, 2] = 2.0 * (qq[2, 3] - qq[0, 1])
+    R[2, 0] = 2.0 * (qq[1, 3] - qq[0, 2])
+    R[2, 1] = 2.0 * (qq[2, 3] + qq[0, 1])
+    R[2, 2] = qq[0, 0] - qq[1, 1] - qq[2, 2] + qq[3, 3]
+    g = qq[0, 0] + qq[1, 1] + qq[2, 2] + qq[3, 3]
+    P = np.zeros((3, 3, 5))  # scaled, degree 4
+    for i in range(3):
+        for j in range(i, 3):
+            for k in range(3):
+                dk = d[k]
+                for a in range(3):
+                    ra = R[i, k, a] * dk
+                    for b in range(3):
+                        P[i, j, a + b] += ra * R[j, k, b]
+    for i in range(3):
+        for j in range(i):
+            P[i, j] = P[j, i]
+    U = np.zeros((3, 6))  # scaled, degree 5: -P p
+    for i in range(3):
+        for j in range(3):
+            for a in range(5):
+                U[i, a] -= P[i, j, a] * p0[j]
+                U[i, a + 1] -= P[i, j, a] * p1[j]
+    s = np.zeros(7)  # scaled, degree 6: -p . U - g^2
+    for i in range(3):
+        for a in range(6):
+            s[a] -= U[i, a] * p0[i]
+            s[a + 1] -= U[i, a] * p1[i]
+    g2 = np.zeros(5)
+    for a in range(3):
+        for b in range(3):
+            g2[a + b] += g[a] * g[b]
+    for a in range(5):  # elevate |q|^4 from degree 4 to 6: times (1 - t + t)^2, scaled [1, 2, 1]
+        s[a] -= g2[a]
+        s[a + 1] -= 2.0 * g2[a]
+        s[a + 2] -= g2[a]
+    b4 = bz.binomial_row(4)
+    b5 = bz.binomial_row(5)
+    b6 = bz.binomial_row(6)
+    for a in range(5):
+        P[:, :, a] /= b4[a]
+    for a in range(6):
+        U[:, a] /= b5[a]
+    for a in range(7):
+        s[a] /= b6[a]
+    return P, U, s
+
+
+@_jit
 def quadric_affine(radii, p0, q0, p1, q1):
     """(P, U, s) of the thesis' affine interpolant: centre and shape matrix both lerped."""
     d = 1.0 / (radii * radii)
@@ -277,6 +348,10 @@ class Rigid(_WMotion):
         rot = w_of_rotation(_linear_bernstein(self.quaternion0, self.quaternion1))
         shift = w_of_translation(_linear_bernstein(self.position0, self.position1))
         super().__init__(*w_compose(*shift, *rot))
+
+    def quadric(self, radii):
+        return quadric_rigid(np.asarray(radii, float), self.position0, self.quaternion0,
+                             self.position1, self.quaternion1)
 
 
 

@@ -1,0 +1,219 @@
+"""``mjccd bench core``: medians of the exact core, and its peers on the same queries.
+
+Sections (all times are medians over queries of the median of repeated runs):
+
+1. batched static status, µs per pair;
+2. rigid/rigid ``first_contact`` in close proximity (the pair's bounding spheres meet
+   during the step): the fused kernel used by batched callers, and the Python API;
+3. the thesis' Example 5.1 (rational motions, F of degree 40 in t);
+4. a link at the end of a six-hinge chain against a static ellipsoid (F of degree 96);
+5. python-fcl's naive CCD (N = 100, 1000) and MuJoCo ``mj_geomDistance`` sampling with
+   bisection on the same rigid queries, scored against mjccd.
+"""
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+
+import numpy as np
+from tqdm import tqdm
+
+import mjccd
+from mjccd.bench import peers
+from mjccd.ccd import rigid_first_contact
+from mjccd.quadric import static_status_batch
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+EXAMPLE_CASES = os.path.join(HERE, "..", "..", "examples", "cases.json")
+
+
+def _median_us(fn, repeats):
+    samples = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    return 1e6 * statistics.median(samples)
+
+
+def _per_query_median(items, fn, repeats):
+    fn(items[0])  # compile / warm up
+    return statistics.median(_median_us(lambda it=it: fn(it), repeats) for it in items)
+
+
+def bench_static(n_pairs, repeats, rng):
+    """µs per pair of the batched static status kernel."""
+    ra = rng.uniform(0.2, 1.0, size=(n_pairs, 3))
+    rb = rng.uniform(0.2, 1.0, size=(n_pairs, 3))
+    pa, pb = rng.normal(size=(n_pairs, 3)), rng.normal(size=(n_pairs, 3))
+    qa, qb = rng.normal(size=(n_pairs, 4)), rng.normal(size=(n_pairs, 4))
+    qa /= np.linalg.norm(qa, axis=1, keepdims=True)
+    qb /= np.linalg.norm(qb, axis=1, keepdims=True)
+    out = np.empty(n_pairs, dtype=np.int64)
+    static_status_batch(ra[:2], pa[:2], qa[:2], rb[:2], pb[:2], qb[:2], out[:2])
+    us = _median_us(lambda: static_status_batch(ra, pa, qa, rb, pb, qb, out), repeats)
+    return us / n_pairs, {int(k): int(v) for k, v in zip(*np.unique(out, return_counts=True))}
+
+
+def _spheres_meet(q):
+    """True when the bounding spheres of the query's two bodies meet during the step."""
+    pa, pb = q.position_a, q.position_b
+    d0, v = pa[0] - pb[0], (pa[1] - pa[0]) - (pb[1] - pb[0])
+    reach = q.radii_a.max() + q.radii_b.max()
+    tt = 0.0 if v @ v == 0 else float(np.clip(-(d0 @ v) / (v @ v), 0.0, 1.0))
+    return np.linalg.norm(d0 + tt * v) <= reach
+
+
+def _fused(q):
+    qa0, qa1 = q.quaternion_a / np.linalg.norm(q.quaternion_a, axis=1, keepdims=True)
+    qb0, qb1 = q.quaternion_b / np.linalg.norm(q.quaternion_b, axis=1, keepdims=True)
+    qa1 = qa1 if qa0 @ qa1 >= 0 else -qa1
+    qb1 = qb1 if qb0 @ qb1 >= 0 else -qb1
+    return (q.radii_a, q.position_a[0], qa0, q.position_a[1], qa1,
+            q.radii_b, q.position_b[0], qb0, q.position_b[1], qb1, 1.0)
+
+
+def _api(q):
+    a, b = mjccd.Ellipsoid(q.radii_a), mjccd.Ellipsoid(q.radii_b)
+    ma = mjccd.Rigid(q.position_a[0], q.quaternion_a[0], q.position_a[1], q.quaternion_a[1])
+    mb = mjccd.Rigid(q.position_b[0], q.quaternion_b[0], q.position_b[1], q.quaternion_b[1])
+    return a, ma, b, mb
+
+
+def reference_times(queries):
+    """mjccd's first contact time of each query (None when the pair stays separate)."""
+    out = []
+    for q in queries:
+        c = mjccd.first_contact(*_api(q))
+        out.append(None if c is None else c.time)
+    return out
+
+
+def six_hinge_chain():
+    """An arm link behind six hinges (rational degree 12: F of degree 96) and an obstacle."""
+    elements = []
+    axes = [[0, 0, 1], [0, 1, 0], [0, 1, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0]]
+    angles = [(-0.4, 0.5), (0.2, -0.3), (-0.5, 0.4), (0.3, 0.6), (-0.2, 0.3), (0.1, -0.4)]
+    for axis, (a0, a1) in zip(axes, angles):
+        elements.append(mjccd.Hinge(axis, a0, a1))
+        elements.append(mjccd.Fixed([0.25, 0.0, 0.0]))
+    return (mjccd.Ellipsoid([0.15, 0.05, 0.05]), mjccd.Chain(elements),
+            mjccd.Ellipsoid([0.2, 0.2, 0.3]), mjccd.Static([1.2, 0.3, 0.1]))
+
+
+def _load_case(cid):
+    with open(EXAMPLE_CASES) as fh:
+        case = next(c for c in json.load(fh)["cases"] if c["id"] == cid)
+    from mjccd.cases import motion_from_json
+    return (mjccd.Ellipsoid(case["a"]["radii"]), motion_from_json(case["a"]["motion"], "a.motion"),
+            mjccd.Ellipsoid(case["b"]["radii"]), motion_from_json(case["b"]["motion"], "b.motion"))
+
+
+def run(n_queries, repeats, n_static, seed, with_peers):
+    rng = np.random.default_rng(seed)
+    rows = []
+    sections = tqdm(total=5 if with_peers else 4, desc="bench core", unit="section")
+
+    us, counts = bench_static(n_static, repeats, rng)
+    rows.append(("static status, batched (per pair)", us, f"{n_static} random pairs; {counts}"))
+    sections.update()
+
+    queries = [q for q in peers.random_rigid_queries(3 * n_queries, seed=seed, max_angle=0.5)
+               if _spheres_meet(q)][:n_queries]
+    refs = reference_times(queries)
+    hits = sum(r is not None for r in refs)
+    fused = _per_query_median([_fused(q) for q in queries], lambda a: rigid_first_contact(*a), repeats)
+    api = _per_query_median([_api(q) for q in queries], lambda a: mjccd.first_contact(*a), repeats)
+    rows.append(("rigid/rigid first_contact, fused kernel", fused,
+                 f"{len(queries)} pairs with meeting bounding spheres, {hits} collide"))
+    rows.append(("rigid/rigid first_contact, Python API", api, "same pairs, includes validation"))
+    sections.update()
+
+    ex = _load_case("pub-thesis-5.1")
+    t_ex = mjccd.first_contact(*ex).time
+    rows.append(("thesis Example 5.1 (F degree 40)", _per_query_median([ex], lambda a: mjccd.first_contact(*a),
+                                                                      max(repeats, 20)),
+                 f"first contact t = {t_ex:.15f}"))
+    sections.update()
+
+    chain = six_hinge_chain()
+    from mjccd.ccd import _Pair
+    degree = _Pair(*chain).F.shape[1] - 1
+    c = mjccd.first_contact(*chain)
+    rows.append((f"six-hinge chain link vs static (F degree {degree})",
+                 _per_query_median([chain], lambda a: mjccd.first_contact(*a), max(repeats, 20)),
+                 "no contact" if c is None else f"first contact t = {c.time:.12f}"))
+    deg6 = _load_case("pub-chain-01")
+    rows.append(("degree-6 rational link vs static (F degree 96)",
+                 _per_query_median([deg6], lambda a: mjccd.first_contact(*a), max(repeats, 20)),
+                 "public case pub-chain-01"))
+    sections.update()
+
+    peer_rows = []
+    if with_peers:
+        straight = [q for q in peers.random_rigid_queries(3 * n_queries, seed=seed + 1, max_angle=0.0)
+                    if _spheres_meet(q)][:n_queries]
+        straight_refs = reference_times(straight)
+        mj_fused = _per_query_median([_fused(q) for q in straight], lambda a: rigid_first_contact(*a), repeats)
+        peer_rows.append(("translation-only", mj_fused, straight,
+                          peers.peer_table(straight, straight_refs, (100, 1000), repeats=max(1, repeats // 2))))
+        peer_rows.append(("rotating (up to 0.5 rad)", fused, queries,
+                          peers.peer_table(queries, refs, (100, 1000), repeats=max(1, repeats // 2))))
+        sections.update()
+    sections.close()
+    return rows, peer_rows
+
+
+def markdown(rows, peer_rows, command):
+    lines = ["## Core (`mjccd bench core`)", "",
+             f"Command: `{command}`  ",
+             f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+             f"numpy {np.__version__}", "",
+             "| query | median µs | notes |", "| --- | ---: | --- |"]
+    for name, us, note in rows:
+        lines.append(f"| {name} | {us:.3f} | {note} |" if us < 1 else f"| {name} | {us:.1f} | {note} |")
+    for title, mine, queries, table in peer_rows:
+        lines += ["", f"### Peers on the same {len(queries)} rigid queries, {title}", "",
+                  f"mjccd (fused kernel, exact): {mine:.1f} µs median per query.", "",
+                  peers.markdown_table(table), "",
+                  "| peer | ratio peer / mjccd (median) |", "| --- | ---: |"]
+        for r in table:
+            if r["median_us"] is not None:
+                lines.append(f"| {r['name']} | {r['median_us'] / mine:.1f}× |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_section(path, text):
+    """Replace the core section of the benchmarks page (or append it)."""
+    start, end = "<!-- bench core: begin -->", "<!-- bench core: end -->"
+    block = f"{start}\n{text}{end}\n"
+    old = open(path).read() if os.path.exists(path) else "# Benchmarks\n\n"
+    if start in old and end in old:
+        new = old[:old.index(start)] + block + old[old.index(end) + len(end) + 1:]
+    else:
+        new = old.rstrip("\n") + "\n\n" + block
+    with open(path, "w") as fh:
+        fh.write(new)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="mjccd bench core", description=__doc__.splitlines()[0])
+    parser.add_argument("--queries", type=int, default=200, help="rigid queries per set (default 200)")
+    parser.add_argument("--repeats", type=int, default=7, help="runs per query (default 7)")
+    parser.add_argument("--static-pairs", type=int, default=200000, help="pairs in the batched static test")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-peers", action="store_true", help="skip python-fcl and MuJoCo sampling")
+    parser.add_argument("--markdown", metavar="FILE", help="write the tables into this markdown file")
+    args = parser.parse_args(argv)
+    if args.queries < 1 or args.repeats < 1 or args.static_pairs < 2:
+        parser.error("--queries and --repeats must be >= 1, --static-pairs >= 2")
+    rows, peer_rows = run(args.queries, args.repeats, args.static_pairs, args.seed, not args.no_peers)
+    command = "mjccd bench core" + ("" if argv is None else " " + " ".join(argv))
+    text = markdown(rows, peer_rows, command)
+    print(text)
+    if args.markdown:
+        _write_section(args.markdown, text)
+        print(f"written to {args.markdown}")
+    return 0

@@ -140,95 +140,85 @@ def _quartic_value(g, u):
 
 
 @_jit
-def _cubic_value(d, u):
+def _cubic(d0, d1, d2, d3, u):
     v = 1.0 - u
-    return d[0] * v ** 3 + 3.0 * d[1] * u * v * v + 3.0 * d[2] * u * u * v + d[3] * u ** 3
+    return d0 * v * v * v + 3.0 * d1 * u * v * v + 3.0 * d2 * u * u * v + d3 * u * u * u
 
 
 @_jit
-def _monotone_root(d, lo, hi, flo):
-    """Root of the cubic ``d`` (Bernstein) on [lo, hi] where it is monotone and changes sign."""
+def _quartic5(g0, g1, g2, g3, g4, u):
+    v = 1.0 - u
+    uu = u * u
+    vv = v * v
+    return g0 * vv * vv + 4.0 * g1 * u * vv * v + 6.0 * g2 * uu * vv + 4.0 * g3 * uu * u * v + g4 * uu * uu
+
+
+@_jit
+def _max_on_piece(g0, g1, g2, g3, g4, lo, hi):
+    """Local maximum of the quartic on [lo, hi] where g' is monotone, or (-inf, lo)."""
+    d0, d1, d2, d3 = g1 - g0, g2 - g1, g3 - g2, g4 - g3  # g'/4 in Bernstein form
+    flo = _cubic(d0, d1, d2, d3, lo)
+    fhi = _cubic(d0, d1, d2, d3, hi)
+    if not (flo > 0.0 and fhi < 0.0):  # g' must go + to - for a maximum inside
+        return -np.inf, lo
     for _ in range(100):
         mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
+        if mid <= lo or mid >= hi or hi - lo < 1e-15:
             break
-        fm = _cubic_value(d, mid)
-        if fm == 0.0:
-            return mid
-        if (fm > 0.0) == (flo > 0.0):
-            lo, flo = mid, fm
+        if _cubic(d0, d1, d2, d3, mid) > 0.0:
+            lo = mid
         else:
             hi = mid
-        if hi - lo < 1e-15:
-            break
-    return 0.5 * (lo + hi)
+    u = 0.5 * (lo + hi)
+    return _quartic5(g0, g1, g2, g3, g4, u), u
 
 
 @_jit
-def quartic_max(g):
-    """Maximum of the Bernstein quartic ``g`` over u in [0, 1] and where it is attained.
+def quartic_max5(g0, g1, g2, g3, g4):
+    """Maximum of a Bernstein quartic over u in [0, 1] and where it is attained (no allocation).
 
     The critical points are the roots of the cubic g'; the roots of g''
     (a quadratic, solved in closed form) split [0, 1] into pieces on which
     g' is monotone, and each sign change there is located by bisection.
     """
-    if g.max() < 0.0:  # convex hull below zero: certainly negative everywhere
-        best_u = 0.0 if g[0] >= g[4] else 1.0
-        return max(g[0], g[4]), best_u
-    d = np.empty(4)  # g'/4 in Bernstein form
-    for i in range(4):
-        d[i] = g[i + 1] - g[i]
-    # g''/12 Bernstein coefficients (quadratic) -> power basis a + b u + c u^2
-    e0 = d[1] - d[0]
-    e1 = d[2] - d[1]
-    e2 = d[3] - d[2]
+    best, best_u = (g0, 0.0) if g0 >= g4 else (g4, 1.0)
+    if max(g1, g2, g3) < best:  # convex hull below the larger end value
+        return best, best_u
+    e0 = (g2 - g1) - (g1 - g0)
+    e1 = (g3 - g2) - (g2 - g1)
+    e2 = (g4 - g3) - (g3 - g2)
     a = e0
     b = 2.0 * (e1 - e0)
     c = e0 - 2.0 * e1 + e2
-    cuts = np.empty(4)
-    ncut = 0
-    cuts[ncut] = 0.0
-    ncut += 1
+    r1 = 2.0
+    r2 = 2.0
     if c == 0.0:
         if b != 0.0:
-            r = -a / b
-            if 0.0 < r < 1.0:
-                cuts[ncut] = r
-                ncut += 1
+            r1 = -a / b
     else:
         disc = b * b - 4.0 * a * c
         if disc > 0.0:
             sq = np.sqrt(disc)
             qq = -0.5 * (b + sq if b >= 0.0 else b - sq)
             r1 = qq / c
-            r2 = a / qq if qq != 0.0 else r1
-            if r1 > r2:
-                r1, r2 = r2, r1
-            if 0.0 < r1 < 1.0:
-                cuts[ncut] = r1
-                ncut += 1
-            if 0.0 < r2 < 1.0 and r2 != r1:
-                cuts[ncut] = r2
-                ncut += 1
-    cuts[ncut] = 1.0
-    ncut += 1
-    best = g[0]
-    best_u = 0.0
-    if g[4] > best:
-        best = g[4]
-        best_u = 1.0
-    for k in range(ncut - 1):
-        lo = cuts[k]
-        hi = cuts[k + 1]
-        flo = _cubic_value(d, lo)
-        fhi = _cubic_value(d, hi)
-        if flo > 0.0 and fhi < 0.0:  # g' goes + to -: a local maximum
-            u = _monotone_root(d, lo, hi, flo)
-            val = _quartic_value(g, u)
-            if val > best:
-                best = val
-                best_u = u
+            r2 = a / qq if qq != 0.0 else 2.0
+    if r1 > r2:
+        r1, r2 = r2, r1
+    lo = 0.0
+    for cut in (r1, r2, 1.0):
+        if cut <= lo or cut > 1.0:
+            continue
+        val, u = _max_on_piece(g0, g1, g2, g3, g4, lo, cut)
+        if val > best:
+            best, best_u = val, u
+        lo = cut
     return best, best_u
+
+
+@_jit
+def quartic_max(g):
+    """:func:`quartic_max5` for an array of five Bernstein coefficients."""
+    return quartic_max5(g[0], g[1], g[2], g[3], g[4])
 
 
 @_jit
@@ -250,12 +240,125 @@ def static_status_matrices(A, B):
 
 
 @_jit
+def _rot_tuple(q):
+    """Rotation matrix of a unit quaternion [w, x, y, z] as a 9-tuple (no allocation)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    return (w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z)
+
+
+@_jit
+def _pencil_det(u, a0, a1, a2, a3, b00, b01, b02, b03, b11, b12, b13, b22, b23, b33):
+    """det((1 - u) diag(a0, a1, a2, a3) + u B) for symmetric B (scalars only)."""
+    v = 1.0 - u
+    m00 = v * a0 + u * b00
+    m11 = v * a1 + u * b11
+    m22 = v * a2 + u * b22
+    m33 = v * a3 + u * b33
+    m01 = u * b01
+    m02 = u * b02
+    m03 = u * b03
+    m12 = u * b12
+    m13 = u * b13
+    m23 = u * b23
+    s0 = m00 * m11 - m01 * m01
+    s1 = m00 * m12 - m01 * m02
+    s2 = m00 * m13 - m01 * m03
+    s3 = m01 * m12 - m11 * m02
+    s4 = m01 * m13 - m11 * m03
+    s5 = m02 * m13 - m12 * m03
+    c5 = m22 * m33 - m23 * m23
+    c4 = m12 * m33 - m13 * m23
+    c3 = m12 * m23 - m13 * m22
+    c2 = m02 * m33 - m03 * m23
+    c1 = m02 * m23 - m03 * m22
+    c0 = m02 * m13 - m03 * m12
+    return s0 * c5 - s1 * c4 + s2 * c3 + s3 * c2 - s4 * c1 + s5 * c0
+
+
+@_jit
+def static_status_pose(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
+    """Status code of two posed ellipsoids, allocation-free (thesis §4.1 in A's frame).
+
+    B is written in A's canonical frame, both matrices are balanced to
+    |det| = 1, and g(u) = det((1-u)A + uB) is sampled at five nodes: a
+    positive sample proves separation, all-negative Bernstein coefficients
+    prove overlap, and only the remaining pairs need the maximum of g.
+    """
+    ra = _rot_tuple(quat_a)
+    rb = _rot_tuple(quat_b)
+    # relative rotation R = Rb^T Ra and translation t = Rb^T (pa - pb)
+    r0 = rb[0] * ra[0] + rb[3] * ra[3] + rb[6] * ra[6]
+    r1 = rb[0] * ra[1] + rb[3] * ra[4] + rb[6] * ra[7]
+    r2 = rb[0] * ra[2] + rb[3] * ra[5] + rb[6] * ra[8]
+    r3 = rb[1] * ra[0] + rb[4] * ra[3] + rb[7] * ra[6]
+    r4 = rb[1] * ra[1] + rb[4] * ra[4] + rb[7] * ra[7]
+    r5 = rb[1] * ra[2] + rb[4] * ra[5] + rb[7] * ra[8]
+    r6 = rb[2] * ra[0] + rb[5] * ra[3] + rb[8] * ra[6]
+    r7 = rb[2] * ra[1] + rb[5] * ra[4] + rb[8] * ra[7]
+    r8 = rb[2] * ra[2] + rb[5] * ra[5] + rb[8] * ra[8]
+    dx = pos_a[0] - pos_b[0]
+    dy = pos_a[1] - pos_b[1]
+    dz = pos_a[2] - pos_b[2]
+    t0 = rb[0] * dx + rb[3] * dy + rb[6] * dz
+    t1 = rb[1] * dx + rb[4] * dy + rb[7] * dz
+    t2 = rb[2] * dx + rb[5] * dy + rb[8] * dz
+    e0 = 1.0 / (radii_b[0] * radii_b[0])
+    e1 = 1.0 / (radii_b[1] * radii_b[1])
+    e2 = 1.0 / (radii_b[2] * radii_b[2])
+    ka = (radii_a[0] * radii_a[1] * radii_a[2]) ** 0.5  # |det A|^(1/4) = 1 / sqrt(abc)
+    kb = (radii_b[0] * radii_b[1] * radii_b[2]) ** 0.5
+    a0 = ka / (radii_a[0] * radii_a[0])
+    a1 = ka / (radii_a[1] * radii_a[1])
+    a2 = ka / (radii_a[2] * radii_a[2])
+    # B in A's frame: Q = R^T E R, Qv = R^T E t, c = t^T E t - 1  (scaled by kb)
+    b00 = kb * (e0 * r0 * r0 + e1 * r3 * r3 + e2 * r6 * r6)
+    b01 = kb * (e0 * r0 * r1 + e1 * r3 * r4 + e2 * r6 * r7)
+    b02 = kb * (e0 * r0 * r2 + e1 * r3 * r5 + e2 * r6 * r8)
+    b11 = kb * (e0 * r1 * r1 + e1 * r4 * r4 + e2 * r7 * r7)
+    b12 = kb * (e0 * r1 * r2 + e1 * r4 * r5 + e2 * r7 * r8)
+    b22 = kb * (e0 * r2 * r2 + e1 * r5 * r5 + e2 * r8 * r8)
+    w0 = e0 * t0
+    w1 = e1 * t1
+    w2 = e2 * t2
+    b03 = kb * (r0 * w0 + r3 * w1 + r6 * w2)
+    b13 = kb * (r1 * w0 + r4 * w1 + r7 * w2)
+    b23 = kb * (r2 * w0 + r5 * w1 + r8 * w2)
+    b33 = kb * (t0 * w0 + t1 * w1 + t2 * w2 - 1.0)
+    ra_ = max(a0, a1, a2, ka)
+    rows = (max(ra_, abs(b00) + abs(b01) + abs(b02) + abs(b03))
+            * max(ra_, abs(b01) + abs(b11) + abs(b12) + abs(b13))
+            * max(ra_, abs(b02) + abs(b12) + abs(b22) + abs(b23))
+            * max(ka, abs(b03) + abs(b13) + abs(b23) + abs(b33)))
+    noise = rows * 64.0 * 2.220446049250313e-16
+    band = TOUCH_ULPS * noise
+    # a positive sample proves separation: try the middle first
+    v2 = _pencil_det(0.5, a0, a1, a2, -ka, b00, b01, b02, b03, b11, b12, b13, b22, b23, b33)
+    if v2 > band:
+        return 1
+    v1 = _pencil_det(0.25, a0, a1, a2, -ka, b00, b01, b02, b03, b11, b12, b13, b22, b23, b33)
+    if v1 > band:
+        return 1
+    v3 = _pencil_det(0.75, a0, a1, a2, -ka, b00, b01, b02, b03, b11, b12, b13, b22, b23, b33)
+    if v3 > band:
+        return 1
+    v0 = -a0 * a1 * a2 * ka
+    v4 = _pencil_det(1.0, a0, a1, a2, -ka, b00, b01, b02, b03, b11, b12, b13, b22, b23, b33)
+    g1 = (-13.0 * v0 + 48.0 * v1 - 36.0 * v2 + 16.0 * v3 - 3.0 * v4) / 12.0
+    g3 = (-3.0 * v0 + 16.0 * v1 - 36.0 * v2 + 48.0 * v3 - 13.0 * v4) / 12.0
+    g2 = (13.0 * v0 - 64.0 * v1 + 120.0 * v2 - 64.0 * v3 + 13.0 * v4) / 18.0
+    if max(v0, g1, g2, g3, v4) < -band:
+        return -1
+    gmax, _ = quartic_max5(v0, g1, g2, g3, v4)
+    return status_from_max(gmax, noise)
+
+
+@_jit
 def static_status_batch(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b, out):
-    """Status codes of many posed pairs at once (one row per pair)."""
+    """Status codes of many posed pairs at once (one row per pair; unit quaternions)."""
     for k in range(out.shape[0]):
-        A = quadric_matrix(radii_a[k], pos_a[k], quat_a[k])
-        B = quadric_matrix(radii_b[k], pos_b[k], quat_b[k])
-        out[k] = static_status_matrices(A, B)
+        out[k] = static_status_pose(radii_a[k], pos_a[k], quat_a[k], radii_b[k], pos_b[k], quat_b[k])
     return out
 
 

@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/mjccd solve examples/cases.json
+	$(VENV)/bin/mjccd solve examples/cases.json --table
 
 test: $(STAMP)
 	$(PY) -m pytest

@@ -29,7 +29,9 @@ def _cmd_solve(args):
     if args.output:
         with open(args.output, "w") as fh:
             fh.write(text + "\n")
-    else:
+    if args.table:
+        print(_table(results["results"]))
+    elif not args.output:
         print(text)
     failed = [r for r in results["results"] if "error" in r]
     for r in failed:
@@ -39,6 +41,19 @@ def _cmd_solve(args):
         print(f"solved {n - len(failed)}/{n} cases" + (f", {len(failed)} failed" if failed else ""),
               file=sys.stderr)
     return 1 if failed else 0
+
+
+def _table(results):
+    """One line per case: status, first contact, intervals, contact point."""
+    lines = [f"{'case':<18} {'at start':<12} {'first contact':>19}  {'intervals':<9} contact point"]
+    for r in results:
+        if "error" in r:
+            lines.append(f"{r['id']:<18} error: {r['error']}")
+            continue
+        t = "none" if r["first_contact"] is None else f"{r['first_contact']:.15f}"
+        p = "" if r["contact_point"] is None else "(" + ", ".join(f"{x:+.6f}" for x in r["contact_point"]) + ")"
+        lines.append(f"{r['id']:<18} {r['status_at_start']:<12} {t:>19}  {len(r['intervals']):<9} {p}")
+    return "\n".join(lines)
 
 
 def _cmd_bench(args):
@@ -55,6 +70,7 @@ def build_parser():
     solve = sub.add_parser("solve", help="solve CCD cases given as JSON (format version 1)")
     solve.add_argument("cases", help="input JSON: {\"version\": 1, \"cases\": [...]}")
     solve.add_argument("-o", "--output", help="write results here instead of stdout")
+    solve.add_argument("--table", action="store_true", help="print a readable table instead of JSON")
     solve.set_defaults(func=_cmd_solve)
     bench = sub.add_parser("bench", help="measure speed and accuracy against peers")
     bench.add_argument("suite", choices=["core", "patches"])

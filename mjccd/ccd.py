@@ -42,6 +42,7 @@ SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is ac
 EXIT_BOX_TOL = 1e-7      # time width at which the overlap search hands over to bisection
 MAX_SHOOTS = 4000
 MAX_BOXES = 200000
+MAX_INTERVALS = 100000
 # relative rounding noise of F's coefficients (construction and evaluation)
 NOISE = 256 * 2.220446049250313e-16
 
@@ -362,7 +363,7 @@ def solve_intervals(F, Fabs, noise, t_max, first_only):
             return status0, out[:0], u_first
     else:
         t_in = 0.0
-    while True:
+    for _ in range(MAX_INTERVALS):
         if first_only:
             out[0, 0] = t_in
             out[0, 1] = t_in
@@ -377,13 +378,16 @@ def solve_intervals(F, Fabs, noise, t_max, first_only):
             t_out = t_in if gmax >= 0.0 else _bisect_sign(F, t_in, probe, True)
         else:
             t_out = probe
-        if k == out.shape[0]:
-            bigger = np.empty((2 * k, 2))
-            bigger[:k] = out
-            out = bigger
-        out[k, 0] = t_in
-        out[k, 1] = t_out
-        k += 1
+        if k > 0 and t_in - out[k - 1, 1] <= 1e-12:  # touching the previous one: merge
+            out[k - 1, 1] = t_out
+        else:
+            if k == out.shape[0]:
+                bigger = np.empty((2 * k, 2))
+                bigger[:k] = out
+                out = bigger
+            out[k, 0] = t_in
+            out[k, 1] = t_out
+            k += 1
         if t_out >= t_max:
             break
         t, code = _step_off(F, Fabs, noise, t_out, t_max)

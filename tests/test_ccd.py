@@ -249,3 +249,26 @@ def test_cli_solve_and_errors(tmp_path):
     wrong_version.write_text(json.dumps({"version": 2, "cases": []}))
     proc = run_cli("solve", str(wrong_version))
     assert proc.returncode == 2 and "version: expected 1" in proc.stderr
+
+
+def test_fused_rigid_kernel_matches_api():
+    from mjccd.ccd import rigid_first_contact
+
+    for seed in range(25):
+        r = np.random.default_rng(100 + seed)
+        ra, rb = r.uniform(0.2, 1.0, 3), r.uniform(0.2, 1.0, 3)
+        qs = [q / np.linalg.norm(q) for q in r.normal(size=(4, 4))]
+        pa0, pa1 = r.normal(size=3) * 2, r.normal(size=3) * 2
+        pb0, pb1 = r.normal(size=3) * 0.3, r.normal(size=3) * 0.3
+        a, b = mjccd.Ellipsoid(ra), mjccd.Ellipsoid(rb)
+        ma, mb = mjccd.Rigid(pa0, qs[0], pa1, qs[1]), mjccd.Rigid(pb0, qs[2], pb1, qs[3])
+        want = mjccd.first_contact(a, ma, b, mb)
+        status, t, point, normal = rigid_first_contact(ra, pa0, ma.quaternion0, pa1, ma.quaternion1,
+                                                       rb, pb0, mb.quaternion0, pb1, mb.quaternion1, 1.0)
+        if want is None:
+            assert t == -1.0
+        else:
+            assert t == pytest.approx(want.time, abs=1e-12)
+            if want.point is not None:
+                assert np.allclose(point, want.point, atol=1e-9)
+                assert np.allclose(normal, want.normal, atol=1e-9)

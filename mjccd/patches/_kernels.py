@@ -1,0 +1,868 @@
+"""Numba kernels of the patch solver: line contours, IntersectionPeriod, swept boxes, search.
+
+Everything here takes plain float64/int64 arrays and scalars and never raises; the
+Python layer in :mod:`mjccd.patches.solver` validates and prepares the arrays.
+
+Storage: every live sub-patch is one row of a pool, ``(N, 7)`` homogeneous control points
+``[w x_t0, w y_t0, w z_t0, w, w x_t1, w y_t1, w z_t1]`` plus its parameter region
+``(u0, v0, h, o)``; a search node is a pair of pool rows and a time interval. Pool rows
+are reference counted and recycled, so memory follows the live queue, not the history.
+"""
+import numpy as np
+import numba
+
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+
+INF = np.inf
+
+# status codes returned by the search
+NO_CONTACT = 0
+CONTACT = 1
+MAX_ITERATIONS = 2
+MAX_NODES = 3
+
+# method codes
+OURS = 0
+TRAD = 1
+
+
+# ---------------------------------------------------------------------------- contours
+@_jit
+def _sort_by_slope(a, n, order):
+    """Insertion sort of ``order[:n]`` by ascending ``a`` (n is at most a few dozen)."""
+    for i in range(n):
+        order[i] = i
+    for i in range(1, n):
+        k = order[i]
+        key = a[k]
+        j = i - 1
+        while j >= 0 and a[order[j]] > key:
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = k
+
+
+@_jit
+def _upper_contour(a, b, eps, order, n, sign, tl, tu, ca, cb, cx):
+    """Max contour over [tl, tu] of the lines ``sign*(a t + b) + eps`` (sort-and-sweep).
+
+    ``order`` sorts ``a`` ascending; with ``sign = -1`` it is walked backwards, so the
+    signed slopes are ascending either way. Output: contour line k (slope ``ca[k]``,
+    intercept ``cb[k]``) is the maximum on ``[cx[k], cx[k+1]]``; ``cx[0] = tl``,
+    ``cx[m] = tu``. Returns m. Lines of equal slope keep the larger intercept; a line is
+    dropped when it never rises above the contour inside [tl, tu].
+    """
+    m = 0
+    for kk in range(n):
+        idx = order[kk] if sign > 0 else order[n - 1 - kk]
+        sa = sign * a[idx]
+        sb = sign * b[idx] + eps[idx]
+        keep = True
+        while m > 0:
+            ta = ca[m - 1]
+            tb = cb[m - 1]
+            if sa == ta:
+                if sb <= tb:
+                    keep = False
+                    break
+                m -= 1
+                continue
+            # sa > ta: the new line overtakes the top one at x
+            x = (tb - sb) / (sa - ta)
+            if x <= cx[m - 1]:
+                m -= 1
+                continue
+            break
+        if not keep:
+            continue
+        if m == 0:
+            ca[0] = sa
+            cb[0] = sb
+            cx[0] = tl
+            m = 1
+        else:
+            x = (cb[m - 1] - sb) / (sa - ca[m - 1])
+            if x >= tu:
+                continue
+            ca[m] = sa
+            cb[m] = sb
+            cx[m] = x
+            m += 1
+    cx[m] = tu
+    return m
+
+
+@_jit
+def _negative_interval(ca1, cb1, cx1, m1, ca2, cb2, cx2, m2, tl, tu, out, k):
+    """Where the convex sum of two contours is negative, as an open interval.
+
+    Writes ``out[k] = (s, e)``; ``s = -inf`` when already negative at tl and
+    ``e = +inf`` when still negative at tu. Returns k + 1, or k when never negative.
+    A convex function is negative on at most one interval, found by one merged sweep
+    over the breakpoints of both contours.
+    """
+    i = 0
+    j = 0
+    x = tl
+    g = (ca1[0] + ca2[0]) * x + cb1[0] + cb2[0]
+    inside = g < 0.0
+    s = -INF
+    while True:
+        xa = cx1[i + 1]
+        xb = cx2[j + 1]
+        nx = xa if xa < xb else xb
+        sl = ca1[i] + ca2[j]
+        ic = cb1[i] + cb2[j]
+        gn = sl * nx + ic
+        if not inside:
+            if gn < 0.0:
+                r = -ic / sl
+                s = r if r > x else x
+                inside = True
+        else:
+            if gn >= 0.0:
+                r = -ic / sl
+                e = r if r < nx else nx
+                out[k, 0] = s
+                out[k, 1] = e
+                return k + 1
+        if xa <= nx:
+            i += 1
+        if xb <= nx:
+            j += 1
+        x = nx
+        if i >= m1 or j >= m2:
+            break
+    if inside:
+        out[k, 0] = s
+        out[k, 1] = INF
+        return k + 1
+    return k
+
+
+@_jit
+def _project(p0, p1, n, ex, ey, ez, a, b):
+    for i in range(n):
+        bi = p0[i, 0] * ex + p0[i, 1] * ey + p0[i, 2] * ez
+        a[i] = p1[i, 0] * ex + p1[i, 1] * ey + p1[i, 2] * ez - bi
+        b[i] = bi
+
+
+@_jit
+def _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ex, ey, ez, tl, tu, ws, out, k):
+    """Non-overlap intervals on one axis (A below B, B below A); returns the new count."""
+    aa = ws.aa
+    ba = ws.ba
+    ab = ws.ab
+    bb = ws.bb
+    _project(pa0, pa1, na, ex, ey, ez, aa, ba)
+    _project(pb0, pb1, nb, ex, ey, ez, ab, bb)
+    _sort_by_slope(aa, na, ws.oa)
+    _sort_by_slope(ab, nb, ws.ob)
+    # A below B: max_A(t) + eps < min_B(t) - eps  <=>  maxA + (-minB) < 0
+    m1 = _upper_contour(aa, ba, sa, ws.oa, na, 1.0, tl, tu, ws.c1a, ws.c1b, ws.c1x)
+    m2 = _upper_contour(ab, bb, sb, ws.ob, nb, -1.0, tl, tu, ws.c2a, ws.c2b, ws.c2x)
+    k = _negative_interval(ws.c1a, ws.c1b, ws.c1x, m1, ws.c2a, ws.c2b, ws.c2x, m2, tl, tu,
+                           out, k)
+    if k > 0 and out[k - 1, 0] == -INF and out[k - 1, 1] == INF:
+        return k
+    # B below A
+    m1 = _upper_contour(ab, bb, sb, ws.ob, nb, 1.0, tl, tu, ws.c1a, ws.c1b, ws.c1x)
+    m2 = _upper_contour(aa, ba, sa, ws.oa, na, -1.0, tl, tu, ws.c2a, ws.c2b, ws.c2x)
+    return _negative_interval(ws.c1a, ws.c1b, ws.c1x, m1, ws.c2a, ws.c2b, ws.c2x, m2, tl, tu,
+                              out, k)
+
+
+@_jit
+def _feasible_hull(out, k, tl, tu):
+    """Smallest and largest t in [tl, tu] outside every open interval ``out[:k]``."""
+    lo = tl
+    changed = True
+    while changed:
+        changed = False
+        for q in range(k):
+            if out[q, 0] < lo and lo < out[q, 1]:
+                lo = out[q, 1]
+                changed = True
+        if lo > tu:
+            return INF, -INF
+    hi = tu
+    changed = True
+    while changed:
+        changed = False
+        for q in range(k):
+            if out[q, 0] < hi and hi < out[q, 1]:
+                hi = out[q, 0]
+                changed = True
+        if hi < tl:
+            return INF, -INF
+    return lo, hi
+
+
+@_jit
+def _axes(fa, fb, use_obb, axes):
+    """Separating axes: 3 world axes, or the 15 OBB axes (near-parallel crosses skipped)."""
+    if not use_obb:
+        for r in range(3):
+            for c in range(3):
+                axes[r, c] = 1.0 if r == c else 0.0
+        return 3
+    n = 0
+    for r in range(3):
+        for c in range(3):
+            axes[n, c] = fa[r, c]
+            axes[n + 1, c] = fb[r, c]
+        n += 2
+    for r in range(3):
+        for q in range(3):
+            x = fa[r, 1] * fb[q, 2] - fa[r, 2] * fb[q, 1]
+            y = fa[r, 2] * fb[q, 0] - fa[r, 0] * fb[q, 2]
+            z = fa[r, 0] * fb[q, 1] - fa[r, 1] * fb[q, 0]
+            nn = np.sqrt(x * x + y * y + z * z)
+            if nn > 1e-9:
+                axes[n, 0] = x / nn
+                axes[n, 1] = y / nn
+                axes[n, 2] = z / nn
+                n += 1
+    return n
+
+
+@_jit
+def intersection_period(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_obb,
+                        time_margin, ws):
+    """Time interval [tau_min, tau_max] within [tl, tu] where the two inclusions may meet.
+
+    pa0/pa1: (na, 3) Euclidean control points of A at t = 0 and t = 1 (linear in between);
+    sa: (na,) per-line contour shift (the robustness margin); fa: (3, 3) OBB frame rows.
+    The candidate interval is widened by ``time_margin`` while testing and the result is
+    clipped back to [tl, tu]. Returns ``(inf, -inf)`` when the inclusions never meet.
+    """
+    el = tl - time_margin
+    eu = tu + time_margin
+    nax = _axes(fa, fb, use_obb, ws.axes)
+    k = 0
+    for q in range(nax):
+        k = _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ws.axes[q, 0], ws.axes[q, 1],
+                       ws.axes[q, 2], el, eu, ws, ws.gaps, k)
+        if k > 0 and ws.gaps[k - 1, 0] == -INF and ws.gaps[k - 1, 1] == INF:
+            return INF, -INF
+    lo, hi = _feasible_hull(ws.gaps, k, el, eu)
+    if lo > hi:
+        return INF, -INF
+    if lo < tl:
+        lo = tl
+    if hi > tu:
+        hi = tu
+    if lo > hi:
+        # feasible only inside the widened margins: keep the nearer endpoint
+        if lo > tu:
+            lo = tu
+        hi = lo
+    return lo, hi
+
+
+@_jit
+def swept_boxes_overlap(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_obb, ws):
+    """Traditional test: do the boxes of the volumes swept over [tl, tu] overlap?"""
+    nax = _axes(fa, fb, use_obb, ws.axes)
+    for q in range(nax):
+        ex = ws.axes[q, 0]
+        ey = ws.axes[q, 1]
+        ez = ws.axes[q, 2]
+        _project(pa0, pa1, na, ex, ey, ez, ws.aa, ws.ba)
+        _project(pb0, pb1, nb, ex, ey, ez, ws.ab, ws.bb)
+        amin = INF
+        amax = -INF
+        for i in range(na):
+            v0 = ws.ba[i] + ws.aa[i] * tl
+            v1 = ws.ba[i] + ws.aa[i] * tu
+            lo = min(v0, v1) - sa[i]
+            hi = max(v0, v1) + sa[i]
+            amin = min(amin, lo)
+            amax = max(amax, hi)
+        bmin = INF
+        bmax = -INF
+        for i in range(nb):
+            v0 = ws.bb[i] + ws.ab[i] * tl
+            v1 = ws.bb[i] + ws.ab[i] * tu
+            lo = min(v0, v1) - sb[i]
+            hi = max(v0, v1) + sb[i]
+            bmin = min(bmin, lo)
+            bmax = max(bmax, hi)
+        if amax < bmin or bmax < amin:
+            return False
+    return True
+
+
+# ---------------------------------------------------------------------------- sub-patches
+@_jit
+def _unit(x, y, z, out, r):
+    nn = np.sqrt(x * x + y * y + z * z)
+    if nn > 0.0 and np.isfinite(nn):
+        out[r, 0] = x / nn
+        out[r, 1] = y / nn
+        out[r, 2] = z / nn
+        return True
+    return False
+
+
+@_jit
+def _corner(p0, p1, t, i, c):
+    return p0[i, c] + t * (p1[i, c] - p0[i, c])
+
+
+@_jit
+def _directions(p0, p1, t, c0, cu, cv, cw, c):
+    """Component c of the u and v parameter directions at time t (Eq. 19-20)."""
+    u = 0.0
+    v = 0.0
+    if cw >= 0:
+        o = _corner(p0, p1, t, c0, c)
+        pu = _corner(p0, p1, t, cu, c)
+        pv = _corner(p0, p1, t, cv, c)
+        pw = _corner(p0, p1, t, cw, c)
+        u = 0.5 * (pu - o + pw - pv)
+        v = 0.5 * (pv - o + pw - pu)
+    else:
+        if cu >= 0:
+            u = _corner(p0, p1, t, cu, c) - _corner(p0, p1, t, c0, c)
+        if cv >= 0:
+            v = _corner(p0, p1, t, cv, c) - _corner(p0, p1, t, c0, c)
+    return u, v
+
+
+@_jit
+def frame(p0, p1, t, corners, out):
+    """Orthonormal OBB frame (rows) from the parameter directions of the shape at time t.
+
+    Axis 1 follows the u direction (paper Eq. 19-21), axis 2 the normal u x v, axis 3
+    completes the frame; degenerate directions (points, segments, collapsed corners) fall
+    back to any orthonormal completion. Any fixed frame keeps the test conservative; the
+    shape at the start of the tested interval keeps the boxes tight.
+    """
+    c0 = corners[0]
+    cu = corners[1]
+    cv = corners[2]
+    cw = corners[3]
+    ux, vx = _directions(p0, p1, t, c0, cu, cv, cw, 0)
+    uy, vy = _directions(p0, p1, t, c0, cu, cv, cw, 1)
+    uz, vz = _directions(p0, p1, t, c0, cu, cv, cw, 2)
+    if not _unit(ux, uy, uz, out, 0):
+        if not _unit(vx, vy, vz, out, 0):
+            out[0, 0] = 1.0
+            out[0, 1] = 0.0
+            out[0, 2] = 0.0
+    ax = out[0, 0]
+    ay = out[0, 1]
+    az = out[0, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    lu = np.sqrt(ux * ux + uy * uy + uz * uz)
+    lv = np.sqrt(vx * vx + vy * vy + vz * vz)
+    ln = np.sqrt(nx * nx + ny * ny + nz * nz)
+    ok = ln > 1e-12 * lu * lv and ln > 0.0
+    if ok:
+        # remove any component along axis 1 (exactly zero in exact arithmetic)
+        d = nx * ax + ny * ay + nz * az
+        ok = _unit(nx - d * ax, ny - d * ay, nz - d * az, out, 1)
+    if not ok:
+        # any unit vector orthogonal to axis 1: cross with the least aligned world axis
+        if abs(ax) <= abs(ay) and abs(ax) <= abs(az):
+            _unit(0.0, az, -ay, out, 1)
+        elif abs(ay) <= abs(az):
+            _unit(-az, 0.0, ax, out, 1)
+        else:
+            _unit(ay, -ax, 0.0, out, 1)
+    bx = out[1, 0]
+    by = out[1, 1]
+    bz = out[1, 2]
+    out[2, 0] = ay * bz - az * by
+    out[2, 1] = az * bx - ax * bz
+    out[2, 2] = ax * by - ay * bx
+
+
+@_jit
+def euclidean(hom, n, rel, p0, p1, shift):
+    """Euclidean control points at t = 0, 1 and their contour shifts from homogeneous rows."""
+    for i in range(n):
+        w = hom[i, 3]
+        m = 0.0
+        for c in range(3):
+            x0 = hom[i, c] / w
+            x1 = hom[i, 4 + c] / w
+            p0[i, c] = x0
+            p1[i, c] = x1
+            m = max(m, abs(x0), abs(x1))
+        shift[i] = rel * m
+
+
+@_jit
+def _child_region(kind, reg, c, out):
+    u0 = reg[0]
+    v0 = reg[1]
+    h = reg[2]
+    o = reg[3]
+    hh = 0.5 * h
+    if kind == 0:
+        out[0] = u0
+        out[1] = v0
+        out[2] = h
+        out[3] = o
+    elif kind == 1:
+        out[0] = u0 + c * hh
+        out[1] = v0
+        out[2] = hh
+        out[3] = 1.0
+    elif kind == 3:
+        out[0] = u0 + (c // 2) * hh
+        out[1] = v0 + (c % 2) * hh
+        out[2] = hh
+        out[3] = 1.0
+    else:
+        out[2] = hh
+        out[3] = o
+        out[0] = u0
+        out[1] = v0
+        if c == 1:
+            out[0] = u0 + o * hh
+        elif c == 2:
+            out[1] = v0 + o * hh
+        elif c == 3:
+            out[0] = u0 + o * hh
+            out[1] = v0 + o * hh
+            out[3] = -o
+
+
+@_jit
+def region_point(kind, reg, out, k):
+    """Representative parameters of a region (centre, or centroid for triangles)."""
+    if kind == 0:
+        out[k] = 0.0
+        out[k + 1] = 0.0
+    elif kind == 1:
+        out[k] = reg[0] + 0.5 * reg[2]
+        out[k + 1] = 0.0
+    elif kind == 3:
+        out[k] = reg[0] + 0.5 * reg[2]
+        out[k + 1] = reg[1] + 0.5 * reg[2]
+    else:
+        out[k] = reg[0] + reg[3] * reg[2] / 3.0
+        out[k + 1] = reg[1] + reg[3] * reg[2] / 3.0
+
+
+@_jit
+def _subdivide(mat, hom, n, out):
+    for i in range(n):
+        for c in range(7):
+            acc = 0.0
+            for j in range(n):
+                acc += mat[i, j] * hom[j, c]
+            out[i, c] = acc
+
+
+# ---------------------------------------------------------------------------- workspace
+Workspace = __import__("collections").namedtuple(
+    "Workspace", "aa ba ab bb oa ob c1a c1b c1x c2a c2b c2x axes gaps")
+
+
+@_jit
+def make_workspace(nmax):
+    """Scratch arrays for the inclusion tests of primitives with up to ``nmax`` points."""
+    return Workspace(np.empty(nmax), np.empty(nmax), np.empty(nmax), np.empty(nmax),
+                     np.empty(nmax, np.int64), np.empty(nmax, np.int64),
+                     np.empty(nmax + 1), np.empty(nmax + 1), np.empty(nmax + 1),
+                     np.empty(nmax + 1), np.empty(nmax + 1), np.empty(nmax + 1),
+                     np.empty((15, 3)), np.empty((32, 2)))
+
+
+@_jit
+def _grow3(a, cap):
+    b = np.empty((cap, a.shape[1], a.shape[2]))
+    b[:a.shape[0]] = a
+    return b
+
+
+@_jit
+def _grow2(a, cap):
+    b = np.empty((cap, a.shape[1]), a.dtype)
+    b[:a.shape[0]] = a
+    return b
+
+
+@_jit
+def _grow1(a, cap):
+    b = np.zeros(cap, a.dtype)
+    b[:a.shape[0]] = a
+    return b
+
+
+# ---------------------------------------------------------------------------- heap
+@_jit
+def _less(hf, i, j):
+    return hf[i, 0] < hf[j, 0] or (hf[i, 0] == hf[j, 0] and hf[i, 2] < hf[j, 2])
+
+
+@_jit
+def _swap(hf, hi, i, j):
+    for c in range(3):
+        x = hf[i, c]
+        hf[i, c] = hf[j, c]
+        hf[j, c] = x
+        y = hi[i, c]
+        hi[i, c] = hi[j, c]
+        hi[j, c] = y
+
+
+@_jit
+def _sift_up(hf, hi, k):
+    while k > 0:
+        p = (k - 1) // 2
+        if _less(hf, k, p):
+            _swap(hf, hi, k, p)
+            k = p
+        else:
+            break
+
+
+@_jit
+def _sift_down(hf, hi, n):
+    k = 0
+    while True:
+        c = 2 * k + 1
+        if c >= n:
+            break
+        if c + 1 < n and _less(hf, c + 1, c):
+            c += 1
+        if _less(hf, c, k):
+            _swap(hf, hi, k, c)
+            k = c
+        else:
+            break
+
+
+# ---------------------------------------------------------------------------- search
+@_jit
+def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b, pairs,
+           method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
+           manifold, simultaneity, separation, points_out, info_out):
+    """Best-first subdivision search for the earliest contact (paper Alg. 2, or Alg. 1).
+
+    roots_a: (Ka, Na, 7) homogeneous rows of the primitives of side A (likewise B);
+    pairs: (P, 2) which (a, b) primitives to test. ``method`` is OURS (time-dependent
+    inclusions, parameter subdivision only) or TRAD (swept boxes, time bisected too).
+    Nodes are popped by the lower end of their time interval; a node is accepted when
+    every parameter width (and for TRAD the time width) is below ``delta``.
+
+    Writes rows ``[t, u1, v1, u2, v2, x, y, z, pair]`` to ``points_out`` (one row, or up
+    to ``points_out.shape[0]`` distinct points in manifold mode) and
+    ``[status, iterations, points, peak queue]`` to ``info_out``. With status
+    MAX_ITERATIONS or MAX_NODES, row 0 holds the smallest open lower bound on the time.
+    """
+    na = roots_a.shape[1]
+    nb = roots_b.shape[1]
+    ca_n = sub_a.shape[0]
+    cb_n = sub_b.shape[0]
+    ws = make_workspace(max(na, nb))
+    # children scratch
+    chA = np.empty((ca_n, na, 7))
+    rgA = np.empty((ca_n, 4))
+    eA0 = np.empty((ca_n, na, 3))
+    eA1 = np.empty((ca_n, na, 3))
+    shA = np.empty((ca_n, na))
+    frA = np.empty((ca_n, 3, 3))
+    idxA = np.empty(ca_n, np.int64)
+    chB = np.empty((cb_n, nb, 7))
+    rgB = np.empty((cb_n, 4))
+    eB0 = np.empty((cb_n, nb, 3))
+    eB1 = np.empty((cb_n, nb, 3))
+    shB = np.empty((cb_n, nb))
+    frB = np.empty((cb_n, 3, 3))
+    idxB = np.empty(cb_n, np.int64)
+    # pools
+    ka = roots_a.shape[0]
+    kb = roots_b.shape[0]
+    capA = max(64, 2 * ka)
+    poolA = np.empty((capA, na, 7))
+    regA = np.empty((capA, 4))
+    refA = np.zeros(capA, np.int64)
+    freeA = np.empty(capA, np.int64)
+    nfreeA = 0
+    topA = ka
+    capB = max(64, 2 * kb)
+    poolB = np.empty((capB, nb, 7))
+    regB = np.empty((capB, 4))
+    refB = np.zeros(capB, np.int64)
+    freeB = np.empty(capB, np.int64)
+    nfreeB = 0
+    topB = kb
+    for i in range(ka):
+        poolA[i] = roots_a[i]
+        regA[i, 0] = 0.0
+        regA[i, 1] = 0.0
+        regA[i, 2] = 1.0 if kind_a != 0 else 0.0
+        regA[i, 3] = 1.0
+    for i in range(kb):
+        poolB[i] = roots_b[i]
+        regB[i, 0] = 0.0
+        regB[i, 1] = 0.0
+        regB[i, 2] = 1.0 if kind_b != 0 else 0.0
+        regB[i, 3] = 1.0
+    # heap: floats (t_lo, t_hi, width), ints (pool a, pool b, root pair)
+    capH = 256
+    hf = np.empty((capH, 3))
+    hi = np.empty((capH, 3), np.int64)
+    nh = 0
+    peak = 0
+    # roots
+    for p in range(pairs.shape[0]):
+        ia = pairs[p, 0]
+        ib = pairs[p, 1]
+        euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+        frame(eA0[0], eA1[0], 0.0, corners_a, frA[0])
+        euclidean(poolB[ib], nb, rel, eB0[0], eB1[0], shB[0])
+        frame(eB0[0], eB1[0], 0.0, corners_b, frB[0])
+        if method == OURS:
+            lo, up = intersection_period(eA0[0], eA1[0], shA[0], frA[0], na, eB0[0], eB1[0],
+                                         shB[0], frB[0], nb, 0.0, t_max, use_obb,
+                                         time_margin, ws)
+        else:
+            lo = 0.0
+            up = t_max
+            if not swept_boxes_overlap(eA0[0], eA1[0], shA[0], frA[0], na, eB0[0], eB1[0],
+                                       shB[0], frB[0], nb, 0.0, t_max, use_obb, ws):
+                lo = INF
+        if lo <= up:
+            if nh == capH:
+                capH *= 2
+                hf = _grow2(hf, capH)
+                hi = _grow2(hi, capH)
+            hf[nh, 0] = lo
+            hf[nh, 1] = up
+            hf[nh, 2] = max(regA[ia, 2], regB[ib, 2])
+            hi[nh, 0] = ia
+            hi[nh, 1] = ib
+            hi[nh, 2] = p
+            refA[ia] += 1
+            refB[ib] += 1
+            nh += 1
+            _sift_up(hf, hi, nh - 1)
+    for i in range(ka):
+        if refA[i] == 0:
+            freeA[nfreeA] = i
+            nfreeA += 1
+    for i in range(kb):
+        if refB[i] == 0:
+            freeB[nfreeB] = i
+            nfreeB += 1
+
+    status = NO_CONTACT
+    iterations = 0
+    found = 0
+    t_first = INF
+    max_points = points_out.shape[0]
+    while nh > 0:
+        if iterations >= max_iterations:
+            status = MAX_ITERATIONS
+            break
+        # pop
+        tl = hf[0, 0]
+        tu = hf[0, 1]
+        ia = hi[0, 0]
+        ib = hi[0, 1]
+        pr = hi[0, 2]
+        nh -= 1
+        if nh > 0:
+            for c in range(3):
+                hf[0, c] = hf[nh, c]
+                hi[0, c] = hi[nh, c]
+            _sift_down(hf, hi, nh)
+        iterations += 1
+        if found > 0 and tl > t_first + simultaneity:
+            nh = 0
+            break
+        width = max(regA[ia, 2], regB[ib, 2])
+        if method == TRAD:
+            width = max(width, tu - tl)
+        if width < delta:
+            # accepted: world point = centroid of A's control points at tl
+            euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+            x = 0.0
+            y = 0.0
+            z = 0.0
+            for i in range(na):
+                x += eA0[0, i, 0] + tl * (eA1[0, i, 0] - eA0[0, i, 0])
+                y += eA0[0, i, 1] + tl * (eA1[0, i, 1] - eA0[0, i, 1])
+                z += eA0[0, i, 2] + tl * (eA1[0, i, 2] - eA0[0, i, 2])
+            x /= na
+            y /= na
+            z /= na
+            distinct = True
+            for q in range(found):
+                dx = points_out[q, 5] - x
+                dy = points_out[q, 6] - y
+                dz = points_out[q, 7] - z
+                if dx * dx + dy * dy + dz * dz < separation * separation:
+                    distinct = False
+                    break
+            if distinct:
+                points_out[found, 0] = tl
+                region_point(kind_a, regA[ia], points_out[found], 1)
+                region_point(kind_b, regB[ib], points_out[found], 3)
+                points_out[found, 5] = x
+                points_out[found, 6] = y
+                points_out[found, 7] = z
+                points_out[found, 8] = pr
+                if found == 0:
+                    t_first = tl
+                found += 1
+                status = CONTACT
+            if not manifold or found >= max_points:
+                nh = 0
+                break
+            refA[ia] -= 1
+            if refA[ia] == 0:
+                freeA[nfreeA] = ia
+                nfreeA += 1
+            refB[ib] -= 1
+            if refB[ib] == 0:
+                freeB[nfreeB] = ib
+                nfreeB += 1
+            continue
+        if found > 0:
+            # manifold mode: drop nodes whose A part lies inside a found point's ball
+            euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+            covered = False
+            for q in range(found):
+                far = 0.0
+                for c in range(3):
+                    lo_c = INF
+                    up_c = -INF
+                    for i in range(na):
+                        v0 = eA0[0, i, c] + tl * (eA1[0, i, c] - eA0[0, i, c])
+                        v1 = eA0[0, i, c] + tu * (eA1[0, i, c] - eA0[0, i, c])
+                        lo_c = min(lo_c, min(v0, v1))
+                        up_c = max(up_c, max(v0, v1))
+                    d = max(abs(lo_c - points_out[q, 5 + c]), abs(up_c - points_out[q, 5 + c]))
+                    far += d * d
+                if far <= separation * separation:
+                    covered = True
+                    break
+            if covered:
+                refA[ia] -= 1
+                if refA[ia] == 0:
+                    freeA[nfreeA] = ia
+                    nfreeA += 1
+                refB[ib] -= 1
+                if refB[ib] == 0:
+                    freeB[nfreeB] = ib
+                    nfreeB += 1
+                continue
+        # subdivide both sides
+        for c in range(ca_n):
+            _subdivide(sub_a[c], poolA[ia], na, chA[c])
+            _child_region(kind_a, regA[ia], c, rgA[c])
+            euclidean(chA[c], na, rel, eA0[c], eA1[c], shA[c])
+            frame(eA0[c], eA1[c], tl, corners_a, frA[c])
+            idxA[c] = ia if ca_n == 1 else -1
+        for c in range(cb_n):
+            _subdivide(sub_b[c], poolB[ib], nb, chB[c])
+            _child_region(kind_b, regB[ib], c, rgB[c])
+            euclidean(chB[c], nb, rel, eB0[c], eB1[c], shB[c])
+            frame(eB0[c], eB1[c], tl, corners_b, frB[c])
+            idxB[c] = ib if cb_n == 1 else -1
+        full = False
+        for ca in range(ca_n):
+            for cb in range(cb_n):
+                for half in range(1 if method == OURS else 2):
+                    if method == OURS:
+                        lo, up = intersection_period(eA0[ca], eA1[ca], shA[ca], frA[ca], na,
+                                                     eB0[cb], eB1[cb], shB[cb], frB[cb], nb,
+                                                     tl, tu, use_obb, time_margin, ws)
+                    else:
+                        tm = 0.5 * (tl + tu)
+                        lo = tl if half == 0 else tm
+                        up = tm if half == 0 else tu
+                        if not swept_boxes_overlap(eA0[ca], eA1[ca], shA[ca], frA[ca], na,
+                                                   eB0[cb], eB1[cb], shB[cb], frB[cb], nb,
+                                                   lo, up, use_obb, ws):
+                            lo = INF
+                    if lo > up:
+                        continue
+                    if nh == capH:
+                        if capH >= max_nodes:
+                            full = True
+                            break
+                        capH *= 2
+                        hf = _grow2(hf, capH)
+                        hi = _grow2(hi, capH)
+                    if idxA[ca] < 0:
+                        if nfreeA > 0:
+                            nfreeA -= 1
+                            j = freeA[nfreeA]
+                        else:
+                            if topA == capA:
+                                capA *= 2
+                                poolA = _grow3(poolA, capA)
+                                regA = _grow2(regA, capA)
+                                refA = _grow1(refA, capA)
+                                freeA = _grow1(freeA, capA)
+                            j = topA
+                            topA += 1
+                        poolA[j] = chA[ca]
+                        regA[j] = rgA[ca]
+                        refA[j] = 0
+                        idxA[ca] = j
+                    if idxB[cb] < 0:
+                        if nfreeB > 0:
+                            nfreeB -= 1
+                            j = freeB[nfreeB]
+                        else:
+                            if topB == capB:
+                                capB *= 2
+                                poolB = _grow3(poolB, capB)
+                                regB = _grow2(regB, capB)
+                                refB = _grow1(refB, capB)
+                                freeB = _grow1(freeB, capB)
+                            j = topB
+                            topB += 1
+                        poolB[j] = chB[cb]
+                        regB[j] = rgB[cb]
+                        refB[j] = 0
+                        idxB[cb] = j
+                    hf[nh, 0] = lo
+                    hf[nh, 1] = up
+                    hf[nh, 2] = max(rgA[ca, 2], rgB[cb, 2])
+                    hi[nh, 0] = idxA[ca]
+                    hi[nh, 1] = idxB[cb]
+                    hi[nh, 2] = pr
+                    refA[idxA[ca]] += 1
+                    refB[idxB[cb]] += 1
+                    nh += 1
+                    _sift_up(hf, hi, nh - 1)
+                if full:
+                    break
+            if full:
+                break
+        if nh > peak:
+            peak = nh
+        refA[ia] -= 1
+        if refA[ia] == 0:
+            freeA[nfreeA] = ia
+            nfreeA += 1
+        refB[ib] -= 1
+        if refB[ib] == 0:
+            freeB[nfreeB] = ib
+            nfreeB += 1
+        if full:
+            # put the popped node's bound back as the answer's lower bound
+            status = MAX_NODES
+            if found == 0:
+                points_out[0, 0] = min(tl, hf[0, 0]) if nh > 0 else tl
+            break
+    if status == MAX_ITERATIONS and found == 0:
+        points_out[0, 0] = hf[0, 0]
+    info_out[0] = status
+    info_out[1] = iterations
+    info_out[2] = found
+    info_out[3] = peak

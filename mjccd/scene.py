@@ -1,0 +1,478 @@
+"""Many moving ellipsoids, many pairs, one frame at a time: filters then the exact solver, in numba.
+
+A :class:`Scene` holds N ellipsoids and a list of pairs.  ``step(poses_t0,
+poses_t1)`` moves every ellipsoid over the frame (rigid: centre lerp and
+quaternion lerp; affine: centre and shape matrix lerp) and answers with a
+:class:`FrameResult`.  Per pair (all inside one compiled kernel):
+
+1. moving bounding spheres (:func:`mjccd.filters.sphere_entry`): free, or a
+   lower bound of the contact time;
+2. the plane cached from the last frame, kept in the first ellipsoid's frame;
+3. static status at t = 0 (overlapping pairs collide at t = 0);
+4. a new separating plane at t = 0 (thesis Thm 4.5–4.6), then one at t = 1;
+5. what is left goes to the exact solver.  When only the first contact is
+   wanted, those pairs are solved in order of sphere-entry time with the
+   best time so far as ``t_max``; a pair whose spheres meet only after it is
+   not solved at all.
+"""
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+
+from mjccd import _validate
+from mjccd import filters as fl
+from mjccd.ccd import NOISE, _balanced, build_F, solve_intervals
+from mjccd.motion import quadric_affine, quadric_at, quadric_rigid
+from mjccd.quadric import (quadric_matrix, separating_plane_matrices, static_status_pose,
+                           touching_point)
+
+_jit = numba.njit(cache=True, nogil=True)
+
+# outcome codes of a pair in one frame
+SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED = range(7)
+OUTCOME_NAMES = ("sphere", "cached_plane", "new_plane", "overlapping_t0", "exact_free",
+                 "exact_colliding", "pruned_by_bound")
+N_COUNTERS = 8  # pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned
+
+
+@intrinsic
+def _ticks(typingctx):
+    """CPU cycle counter (for the optional per-pair timing of benchmarks)."""
+    def codegen(context, builder, signature, args):
+        import llvmlite.ir as ir
+        fnty = ir.FunctionType(ir.IntType(64), [])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
+        return builder.call(fn, [])
+    return types.int64(), codegen
+
+
+# ---------------------------------------------------------------- kernels
+
+
+@_jit
+def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+    """Exact CCD of one pair: (status at start, intervals (k, 2), point, normal).
+
+    The same construction as :func:`mjccd.ccd.rigid_first_contact` (common
+    origin and length, balanced quadrics), for either motion model.
+    point/normal are zero when there is no external touch at t > 0.
+    """
+    length = max(ra.max(), rb.max())
+    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
+    if affine:
+        A = _balanced(*quadric_affine(ra / length, (pa0 - origin) / length, qa0, (pa1 - origin) / length, qa1))
+        B = _balanced(*quadric_affine(rb / length, (pb0 - origin) / length, qb0, (pb1 - origin) / length, qb1))
+    else:
+        A = _balanced(*quadric_rigid(ra / length, (pa0 - origin) / length, qa0, (pa1 - origin) / length, qa1))
+        B = _balanced(*quadric_rigid(rb / length, (pb0 - origin) / length, qb0, (pb1 - origin) / length, qb1))
+    F = build_F(A[0], A[1], A[2], B[0], B[1], B[2])
+    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
+    point = np.zeros(3)
+    normal = np.zeros(3)
+    if status0 == 1 and intervals.shape[0] > 0:
+        t = intervals[0, 0]
+        p, n = touching_point(quadric_at(A[0], A[1], A[2], t), quadric_at(B[0], B[1], B[2], t), u)
+        point = origin + length * p
+        normal = n
+    return status0, intervals, point, normal
+
+
+@_jit
+def _rotate(R, v, out):
+    for i in range(3):
+        out[i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+
+
+@_jit
+def _rotate_back(R, v, out):
+    for i in range(3):
+        out[i] = R[0, i] * v[0] + R[1, i] * v[1] + R[2, i] * v[2]
+
+
+@_jit
+def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache, cache_n, cache_ok, k,
+                 work, scratch):
+    """Filters of pair k = (i, j): returns (outcome code, sphere-entry time)."""
+    te = fl.sphere_entry(p0[i], p1[i], rmax[i], p0[j], p1[j], rmax[j])
+    if te < 0.0:
+        return SPHERE, te
+    o = p0[i]
+    ca0, ca1, cb0, cb1 = scratch[0], scratch[1], scratch[2], scratch[3]
+    n0, n1, tmp = scratch[4], scratch[5], scratch[6]
+    for m in range(3):
+        ca0[m] = 0.0
+        ca1[m] = p1[i, m] - o[m]
+        cb0[m] = p0[j, m] - o[m]
+        cb1[m] = p1[j, m] - o[m]
+    if use_cache and cache_ok[k]:
+        _rotate(R0[i], cache_n[k], n0)
+        if fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
+                               n1, work):
+            _rotate_back(R1[i], n1, cache_n[k])
+            return CACHED_PLANE, te
+    cache_ok[k] = False
+    if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) <= 0:
+        return OVERLAP_T0, 0.0
+    if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) <= 0:
+        return EXACT_FREE, te  # certainly not separate at t = 1: straight to the exact solver
+    ok, plane, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca0, q0[i]),
+                                                quadric_matrix(radii[j], cb0, q0[j]))
+    if ok:
+        for m in range(3):
+            n0[m] = plane[m]
+        if fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
+                               n1, work):
+            _rotate_back(R1[i], n1, cache_n[k])
+            cache_ok[k] = True
+            return NEW_PLANE, te
+    ok1, plane1, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca1, q1[i]),
+                                                  quadric_matrix(radii[j], cb1, q1[j]))
+    if ok1:
+        for m in range(3):
+            tmp[m] = plane1[m]
+        _rotate_back(R1[i], tmp, cache_n[k])
+        cache_ok[k] = True
+        if ok and n0[0] * tmp[0] + n0[1] * tmp[1] + n0[2] * tmp[2] > 0.0:
+            if fl.witness(n0, tmp, ca0, ca1, T[i], den[i], cb0, cb1, T[j], den[j], work):
+                return NEW_PLANE, te
+    return EXACT_FREE, te
+
+
+@_jit
+def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_ok, all_pairs, timing,
+                outcome, entry, times, points, normals, ticks):
+    """One frame over all pairs.  Fills the per-pair arrays; returns (best pair, counters, intervals, owners).
+
+    ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
+    contact of pair k (-1 when none found), ``entry[k]`` its sphere-entry
+    time.  With ``all_pairs`` every pair not cleared by a filter is solved
+    over [0, 1] and its intervals are returned (``owners`` gives the pair of
+    each row); otherwise only the frame's first contact is sought.
+    """
+    n = radii.shape[0]
+    npairs = pairs.shape[0]
+    q1 = q1_raw.copy()
+    rmax = np.empty(n)
+    T = np.empty((n, 3, 3, 5))
+    den = np.empty((n, 5))
+    R0 = np.empty((n, 3, 3))
+    R1 = np.empty((n, 3, 3))
+    for i in range(n):
+        if q0[i, 0] * q1[i, 0] + q0[i, 1] * q1[i, 1] + q0[i, 2] * q1[i, 2] + q0[i, 3] * q1[i, 3] < 0.0:
+            for m in range(4):
+                q1[i, m] = -q1[i, m]
+        rmax[i] = radii[i].max()
+        if affine:
+            fl.support_affine(radii[i], q0[i], q1[i], T[i], den[i])
+        else:
+            fl.support_rigid(radii[i], q0[i], q1[i], T[i], den[i])
+        R0[i] = fl._rotation(q0[i])
+        R1[i] = fl._rotation(q1[i])
+    work = np.empty(fl.WORK_SHAPE)
+    scratch = np.empty((7, 3))
+    counters = np.zeros(N_COUNTERS, dtype=np.int64)
+    counters[0] = npairs
+    cand = np.empty(npairs, dtype=np.int64)
+    ncand = 0
+    best = 2.0
+    best_k = -1
+    t_start = 0
+    for k in range(npairs):
+        if timing:
+            t_start = _ticks()
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        times[k] = -1.0
+        code, te = _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache,
+                                cache_n, cache_ok, k, work, scratch)
+        outcome[k] = code
+        entry[k] = te
+        if code == OVERLAP_T0:
+            times[k] = 0.0
+            if best > 0.0:
+                best, best_k = 0.0, k
+            cand[ncand] = k
+            ncand += 1
+        elif code == EXACT_FREE:
+            cand[ncand] = k
+            ncand += 1
+        if code <= NEW_PLANE:
+            counters[1 + code] += 1
+        if timing:
+            ticks[k] = _ticks() - t_start
+    iv = np.empty((16, 2))
+    owner = np.empty(16, dtype=np.int64)
+    niv = 0
+    order = np.argsort(entry[cand[:ncand]], kind="mergesort")
+    for idx in range(ncand):
+        k = cand[order[idx]]
+        if timing:
+            t_start = _ticks()
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        if outcome[k] == OVERLAP_T0:
+            counters[4] += 1
+            counters[6] += 1
+            if not all_pairs:
+                continue
+        elif not all_pairs and (best == 0.0 or entry[k] > best):
+            outcome[k] = PRUNED
+            counters[7] += 1
+            continue
+        t_max = 1.0 if all_pairs else min(best, 1.0)
+        status0, intervals, point, normal = exact_pair(affine, radii[i], p0[i], q0[i], p1[i], q1[i], radii[j],
+                                                       p0[j], q0[j], p1[j], q1[j], t_max, not all_pairs)
+        if outcome[k] != OVERLAP_T0:
+            counters[5] += 1
+            if intervals.shape[0] > 0:
+                outcome[k] = EXACT_HIT
+                counters[6] += 1
+                t = intervals[0, 0] if status0 == 1 else 0.0
+                times[k] = t
+                points[k] = point
+                normals[k] = normal
+                if t < best or (t == best and k < best_k):
+                    best, best_k = t, k
+        if all_pairs:
+            for r in range(intervals.shape[0]):
+                if niv == iv.shape[0]:
+                    bigger = np.empty((2 * niv, 2))
+                    bigger[:niv] = iv
+                    iv = bigger
+                    bigger_o = np.empty(2 * niv, dtype=np.int64)
+                    bigger_o[:niv] = owner
+                    owner = bigger_o
+                iv[niv] = intervals[r]
+                owner[niv] = k
+                niv += 1
+        if timing:
+            ticks[k] += _ticks() - t_start
+    return best_k, counters, iv[:niv], owner[:niv]
+
+
+@_jit
+def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_ok, timing,
+               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks):
+    """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache."""
+    npairs = pairs.shape[0]
+    entry = np.empty(npairs)
+    times = np.empty(npairs)
+    points = np.zeros((npairs, 3))
+    normals = np.zeros((npairs, 3))
+    for f in range(positions.shape[0] - 1):
+        k, c, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
+                                 use_cache, cache_n, cache_ok, False, timing, outcomes[f], entry, times, points,
+                                 normals, ticks[f])
+        counters[f] = c
+        best_pair[f] = k
+        best_time[f] = times[k] if k >= 0 else -1.0
+        if k >= 0:
+            best_point[f] = points[k]
+            best_normal[f] = normals[k]
+
+
+# ---------------------------------------------------------------- Python layer
+
+
+@dataclass(frozen=True)
+class PairContact:
+    """Contact of one pair in a frame.
+
+    ``time`` in [0, 1] (0 when the pair is not separate at the start); ``point``
+    (world) and ``normal`` (unit, outward from ``bodies[0]``) are None then.
+    ``intervals`` lists the maximal non-separation intervals (only when every
+    colliding pair was asked for; empty otherwise).
+    """
+
+    pair: int
+    bodies: tuple
+    time: float
+    point: object
+    normal: object
+    intervals: tuple = ()
+
+
+@dataclass(frozen=True)
+class FrameCounters:
+    """How the pairs of a frame were decided.
+
+    ``colliding`` counts the pairs found colliding; when only the first contact
+    is sought, pairs whose spheres meet after it are ``pruned`` instead of
+    solved, so it is a lower bound then.
+    """
+
+    pairs: int
+    sphere_culled: int
+    cached_plane: int
+    new_plane: int
+    overlapping_t0: int
+    solved_exactly: int
+    colliding: int
+    pruned: int
+
+    @classmethod
+    def from_array(cls, c):
+        return cls(*(int(x) for x in c))
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """Result of :meth:`Scene.step`: the first contact (or None), all contacts when asked, counters."""
+
+    first: object
+    contacts: tuple
+    counters: FrameCounters
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Result of :meth:`Scene.run` over F frames (arrays indexed by frame).
+
+    ``time[f]`` is the first contact of frame f (-1 when none), ``pair[f]`` its
+    pair index (-1), ``point``/``normal`` (F, 3) zero when none or at t = 0;
+    ``counters`` (F, 8) in the order of :class:`FrameCounters`; ``outcomes``
+    (F, P) the outcome code of every pair (see ``OUTCOME_NAMES``); ``ticks``
+    (F, P) CPU cycles per pair when timing was asked for.
+    """
+
+    time: np.ndarray
+    pair: np.ndarray
+    point: np.ndarray
+    normal: np.ndarray
+    counters: np.ndarray
+    outcomes: np.ndarray
+    ticks: np.ndarray
+
+
+def all_pairs(n):
+    """All pairs (i, j), i < j, of n ellipsoids: (n (n - 1) / 2, 2)."""
+    i, j = np.triu_indices(int(n), 1)
+    return np.stack([i, j], axis=1).astype(np.int64)
+
+
+def pairs_between(group_a, group_b):
+    """Every pair with one ellipsoid from each group (thesis: two characters, 20 x 20 pairs)."""
+    a = np.asarray(group_a, dtype=np.int64).ravel()
+    b = np.asarray(group_b, dtype=np.int64).ravel()
+    return np.stack([np.repeat(a, len(b)), np.tile(b, len(a))], axis=1)
+
+
+def non_adjacent_pairs(n, edges):
+    """All pairs of n ellipsoids except the adjacent ones listed in ``edges`` (self-collision)."""
+    adjacent = {(min(int(a), int(b)), max(int(a), int(b))) for a, b in np.asarray(edges).reshape(-1, 2)}
+    return np.array([p for p in all_pairs(n).tolist() if tuple(p) not in adjacent], dtype=np.int64).reshape(-1, 2)
+
+
+class Scene:
+    """N ellipsoids and the pairs to check, stepped frame by frame.
+
+    Args:
+        radii: (N, 3) semi-axes of each ellipsoid in its own frame.
+        pairs: (P, 2) ellipsoid indices; default all pairs i < j (see
+            :func:`pairs_between`, :func:`non_adjacent_pairs`).
+        motion: "rigid" (centre and quaternion lerp) or "affine" (centre and
+            shape matrix lerp, thesis §5.2).
+        plane_cache: keep each pair's separating plane for the next frame.
+    """
+
+    def __init__(self, radii, *, pairs=None, motion="rigid", plane_cache=True):
+        self.radii = _validate.radii_array(radii, "radii")
+        n = len(self.radii)
+        if motion not in ("rigid", "affine"):
+            raise ValueError(f"motion: expected 'rigid' or 'affine', got {motion!r}")
+        self.motion = motion
+        if pairs is None:
+            pairs = all_pairs(n)
+        arr = np.asarray(pairs)
+        if arr.ndim != 2 or arr.shape[1] != 2:
+            raise ValueError(f"pairs: expected shape Px2, got {arr.shape}")
+        if arr.size and not np.issubdtype(arr.dtype, np.integer):
+            if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
+                raise ValueError("pairs: expected integer ellipsoid indices")
+        arr = arr.astype(np.int64)
+        bad = np.nonzero((arr < 0).any(axis=1) | (arr >= n).any(axis=1))[0]
+        if len(bad):
+            raise ValueError(f"pairs[{bad[0]}]: index out of range for {n} ellipsoids, got {arr[bad[0]].tolist()}")
+        same = np.nonzero(arr[:, 0] == arr[:, 1])[0]
+        if len(same):
+            raise ValueError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, got {arr[same[0]].tolist()}")
+        self.pairs = np.ascontiguousarray(arr)
+        self.plane_cache = bool(plane_cache)
+        self.reset_cache()
+
+    def reset_cache(self):
+        """Forget every cached separating plane."""
+        self._cache_n = np.zeros((len(self.pairs), 3))
+        self._cache_ok = np.zeros(len(self.pairs), dtype=np.bool_)
+
+    def _poses(self, poses, field):
+        p = _validate.pose_array(poses, field, len(self.radii))
+        return np.ascontiguousarray(p[:, :3]), np.ascontiguousarray(p[:, 3:])
+
+    def step(self, poses_t0, poses_t1, *, all_pairs=False):
+        """Check one frame.
+
+        Args:
+            poses_t0, poses_t1: (N, 7) rows ``[x, y, z, w, qx, qy, qz]`` at the
+                start and end of the frame (world frame).
+            all_pairs: also return every colliding pair with its first contact
+                and intervals (slower: no earliest-contact bound).
+        Returns:
+            :class:`FrameResult`.
+        """
+        p0, q0 = self._poses(poses_t0, "poses_t0")
+        p1, q1 = self._poses(poses_t1, "poses_t1")
+        npairs = len(self.pairs)
+        outcome = np.empty(npairs, dtype=np.int8)
+        entry = np.empty(npairs)
+        times = np.empty(npairs)
+        points = np.zeros((npairs, 3))
+        normals = np.zeros((npairs, 3))
+        ticks = np.zeros(npairs, dtype=np.int64)
+        best_k, counters, iv, owner = step_kernel(
+            self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
+            self._cache_ok, bool(all_pairs), False, outcome, entry, times, points, normals, ticks)
+        first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
+        contacts = ()
+        if all_pairs:
+            rows = {}
+            for (a, b), k in zip(iv, owner):
+                rows.setdefault(int(k), []).append((float(a), float(b)))
+            contacts = tuple(self._contact(k, times, points, normals, tuple(rows.get(k, ())))
+                             for k in np.nonzero(times >= 0.0)[0].tolist())
+        return FrameResult(first, contacts, FrameCounters.from_array(counters))
+
+    def _contact(self, k, times, points, normals, intervals):
+        t = float(times[k])
+        at_start = t == 0.0 and not np.any(normals[k])
+        return PairContact(int(k), (int(self.pairs[k, 0]), int(self.pairs[k, 1])), t,
+                           None if at_start else points[k].copy(), None if at_start else normals[k].copy(),
+                           intervals)
+
+    def run(self, poses, *, timing=False):
+        """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
+
+        The plane cache carries from frame to frame (and into later calls).
+        ``timing`` records CPU cycles per pair (for benchmarks).
+        """
+        arr = _validate.array(poses, (None, len(self.radii), 7), "poses")
+        if arr.shape[0] < 2:
+            raise ValueError(f"poses: expected at least 2 pose sets (F + 1, N, 7), got {arr.shape[0]}")
+        norms = np.sqrt(np.sum(arr[:, :, 3:] ** 2, axis=2))
+        bad = np.argwhere(norms < 1e-12)
+        if len(bad):
+            raise ValueError(f"poses[{bad[0][0]}][{bad[0][1]}]: zero quaternion")
+        positions = np.ascontiguousarray(arr[:, :, :3])
+        quats = np.ascontiguousarray(arr[:, :, 3:] / norms[:, :, None])
+        nf = arr.shape[0] - 1
+        npairs = len(self.pairs)
+        out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
+                        np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
+                        np.zeros((nf, npairs), dtype=np.int64))
+        run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.plane_cache,
+                   self._cache_n, self._cache_ok, bool(timing), out.time, out.pair, out.point, out.normal,
+                   out.counters, out.outcomes, out.ticks)
+        return out

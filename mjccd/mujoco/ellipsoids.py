@@ -1,0 +1,150 @@
+"""Bounding ellipsoids attached to MuJoCo bodies: the set, its files, and its binding to a model."""
+import json
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mjccd import _validate
+
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class EllipsoidSet:
+    """Ellipsoids fixed in MuJoCo body frames.
+
+    Attributes:
+        bodies: (N,) body names (``#id`` for an unnamed body), one per ellipsoid (several ellipsoids may share a body).
+        radii: (N, 3) semi-axes in the ellipsoid's own frame.
+        positions: (N, 3) ellipsoid centres in the body frame.
+        quaternions: (N, 4) ellipsoid orientations [w, x, y, z] in the body frame.
+        geoms: (N,) name of the geom an ellipsoid bounds, or "" when it bounds a whole body.
+        volume_ratios: (N,) ellipsoid volume / volume of the geometry it bounds (NaN if unknown).
+    """
+
+    bodies: tuple
+    radii: np.ndarray
+    positions: np.ndarray
+    quaternions: np.ndarray
+    geoms: tuple = ()
+    volume_ratios: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        bodies = tuple(str(b) for b in self.bodies)
+        n = len(bodies)
+        if n == 0:
+            raise ValueError("bodies: an ellipsoid set needs at least one ellipsoid")
+        object.__setattr__(self, "bodies", bodies)
+        object.__setattr__(self, "radii", _validate.radii_array(self.radii, "radii"))
+        object.__setattr__(self, "positions", _validate.array(self.positions, (n, 3), "positions"))
+        quats = _validate.pose_array(np.hstack([np.zeros((n, 3)), _validate.array(
+            self.quaternions, (n, 4), "quaternions")]), "quaternions")[:, 3:]
+        object.__setattr__(self, "quaternions", np.ascontiguousarray(quats))
+        if len(self.radii) != n:
+            raise ValueError(f"radii: expected {n} rows (one per body entry), got {len(self.radii)}")
+        geoms = tuple(str(g) for g in self.geoms) if len(self.geoms) else ("",) * n
+        if len(geoms) != n:
+            raise ValueError(f"geoms: expected {n} entries, got {len(geoms)}")
+        object.__setattr__(self, "geoms", geoms)
+        ratios = (np.full(n, np.nan) if self.volume_ratios is None
+                  else np.asarray(self.volume_ratios, dtype=float).reshape(-1))
+        if ratios.shape != (n,):
+            raise ValueError(f"volume_ratios: expected {n} entries, got {ratios.shape[0]}")
+        object.__setattr__(self, "volume_ratios", ratios)
+
+    def __len__(self):
+        return len(self.bodies)
+
+    def body_ids(self, model):
+        """(N,) MuJoCo body ids of the ellipsoids; ValueError naming any body the model lacks."""
+        import mujoco
+
+        ids = np.empty(len(self), dtype=np.int64)
+        for k, name in enumerate(self.bodies):
+            if name.startswith("#") and name[1:].isdigit():
+                ids[k] = int(name[1:]) if int(name[1:]) < model.nbody else -1
+            else:
+                ids[k] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+            if ids[k] < 0:
+                raise ValueError(f"ellipsoids.bodies[{k}]: the model has no body {name!r}")
+        return ids
+
+    # ------------------------------------------------------------ files
+
+    def to_dict(self):
+        """Plain JSON-ready dictionary (format version 1)."""
+        return {"version": FORMAT_VERSION, "ellipsoids": [
+            {"body": b, "geom": g or None, "radii": r.tolist(), "position": p.tolist(),
+             "quaternion": q.tolist(),
+             "volume_ratio": None if not np.isfinite(v) else float(v)}
+            for b, g, r, p, q, v in zip(self.bodies, self.geoms, self.radii, self.positions,
+                                        self.quaternions, self.volume_ratios)]}
+
+    @classmethod
+    def from_dict(cls, doc):
+        """Inverse of :meth:`to_dict`; errors name the entry and field."""
+        if not isinstance(doc, dict) or not isinstance(doc.get("ellipsoids"), list):
+            raise ValueError("ellipsoids: expected an object with an 'ellipsoids' list")
+        if doc.get("version", FORMAT_VERSION) != FORMAT_VERSION:
+            raise ValueError(f"version: unsupported ellipsoid file version {doc.get('version')!r}")
+        rows = doc["ellipsoids"]
+        for k, row in enumerate(rows):
+            for key in ("body", "radii", "position", "quaternion"):
+                if not isinstance(row, dict) or key not in row:
+                    raise ValueError(f"ellipsoids[{k}].{key}: missing")
+        return cls(bodies=[r["body"] for r in rows],
+                   radii=[_validate.radii(r["radii"], f"ellipsoids[{k}].radii") for k, r in enumerate(rows)],
+                   positions=[r["position"] for r in rows],
+                   quaternions=[r["quaternion"] for r in rows],
+                   geoms=[r.get("geom") or "" for r in rows],
+                   volume_ratios=[np.nan if r.get("volume_ratio") is None else r["volume_ratio"] for r in rows])
+
+    def save(self, path):
+        """Write to ``.json`` or ``.npz`` (chosen by the extension)."""
+        path = os.fspath(path)
+        if path.endswith(".npz"):
+            np.savez(path, version=FORMAT_VERSION, bodies=np.array(self.bodies), geoms=np.array(self.geoms),
+                     radii=self.radii, positions=self.positions, quaternions=self.quaternions,
+                     volume_ratios=self.volume_ratios)
+        elif path.endswith(".json"):
+            with open(path, "w") as fh:
+                json.dump(self.to_dict(), fh, indent=1)
+                fh.write("\n")
+        else:
+            raise ValueError(f"path: expected a .json or .npz file name, got {path!r}")
+
+    @classmethod
+    def load(cls, path):
+        """Read a file written by :meth:`save`."""
+        path = os.fspath(path)
+        if path.endswith(".npz"):
+            with np.load(path, allow_pickle=False) as f:
+                missing = [k for k in ("bodies", "radii", "positions", "quaternions") if k not in f]
+                if missing:
+                    raise ValueError(f"{path}: missing array {missing[0]!r}")
+                return cls(bodies=f["bodies"].tolist(), radii=f["radii"], positions=f["positions"],
+                           quaternions=f["quaternions"],
+                           geoms=f["geoms"].tolist() if "geoms" in f else (),
+                           volume_ratios=f["volume_ratios"] if "volume_ratios" in f else None)
+        if path.endswith(".json"):
+            with open(path) as fh:
+                try:
+                    doc = json.load(fh)
+                except json.JSONDecodeError as exc:
+                    raise ValueError(f"{path}: not valid JSON: {exc}") from None
+            return cls.from_dict(doc)
+        raise ValueError(f"path: expected a .json or .npz file name, got {path!r}")
+
+
+def body_label(model, body_id):
+    """A body's name, or ``#id`` for an unnamed body (how :class:`EllipsoidSet` refers to it)."""
+    import mujoco
+
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(body_id))
+    return name if name else f"#{int(body_id)}"
+
+
+def load_ellipsoids(path):
+    """Load an :class:`EllipsoidSet` from a ``.json`` or ``.npz`` file."""
+    return EllipsoidSet.load(path)

@@ -1,0 +1,288 @@
+"""CCDMonitor: the exact first contact of every MuJoCo step between fitted ellipsoids."""
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from mjccd.ccd import first_contact
+from mjccd.motion import Static
+from mjccd.quadric import Ellipsoid, static_status_pose
+from mjccd.scene import Scene
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, motions_between,
+                                  sweep_sphere)
+
+STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
+
+
+@dataclass(frozen=True)
+class StepContact:
+    """First contact of one pair of bodies within one simulator step.
+
+    Attributes:
+        time: simulation time of the contact in seconds.
+        fraction: the same instant as a fraction in [0, 1] of the step.
+        bodies: the two body names (``#id`` for unnamed bodies).
+        body_ids: the two MuJoCo body ids.
+        ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`.
+        point: (3,) world contact point, None when the pair was not separate at the step start.
+        normal: (3,) unit world normal pointing out of ``bodies[0]``, None likewise.
+        status_at_start: "separate", "touching" or "overlapping" at the step start.
+    """
+
+    time: float
+    fraction: float
+    bodies: tuple
+    body_ids: tuple
+    ellipsoids: tuple
+    point: object
+    normal: object
+    status_at_start: str
+
+
+@dataclass(frozen=True)
+class StepReport:
+    """Everything one check found: the first contact (or None), all colliding pairs when asked, counts."""
+
+    first: object
+    contacts: tuple
+    pairs_checked: int
+    pairs_solved: int
+
+
+def _pair_key(a, b):
+    return (a, b) if a < b else (b, a)
+
+
+def excluded_body_pairs(model):
+    """Body pairs named in the model's ``<exclude>`` elements, as (low id, high id) tuples."""
+    out = set()
+    for sig in np.asarray(model.exclude_signature).ravel():
+        out.add(_pair_key(int(sig >> 16), int(sig & 0xFFFF)))
+    return out
+
+
+def default_pairs(model, ellipsoids, *, drop_overlapping_at_qpos0=True):
+    """(P, 2) ellipsoid index pairs worth checking.
+
+    Kept: ellipsoids on different bodies that can move relative to each other
+    (different ``body_weldid``), that are not parent and child joined by a
+    joint, and whose bodies are not listed in ``<exclude>``.  With
+    ``drop_overlapping_at_qpos0`` the pairs whose ellipsoids already touch or
+    overlap in the model's reference pose ``qpos0`` are dropped too: neighbours
+    such as a shoulder and the chest are always in contact and would report
+    a contact at every step.
+    """
+    ids = ellipsoids.body_ids(model)
+    excluded = excluded_body_pairs(model)
+    weld = model.body_weldid
+    parent = model.body_parentid
+    rows = []
+    for i in range(len(ids)):
+        for j in range(i + 1, len(ids)):
+            a, b = int(ids[i]), int(ids[j])
+            if weld[a] == weld[b]:
+                continue
+            if (parent[a] == b and model.body_jntnum[a] > 0) or (parent[b] == a and model.body_jntnum[b] > 0):
+                continue
+            if _pair_key(a, b) in excluded:
+                continue
+            rows.append((i, j))
+    pairs = np.array(rows, dtype=np.int64).reshape(-1, 2)
+    if drop_overlapping_at_qpos0 and len(pairs):
+        kin = Kinematics(model)
+        state = State(model.qpos0.copy(), model.body_pos[model.body_mocapid >= 0].copy(),
+                      model.body_quat[model.body_mocapid >= 0].copy())
+        poses = kin.ellipsoid_poses(state, ids, ellipsoids.positions, ellipsoids.quaternions)
+        keep = [static_status_pose(ellipsoids.radii[i], poses[i, :3], poses[i, 3:],
+                                   ellipsoids.radii[j], poses[j, :3], poses[j, 3:]) == 1 for i, j in pairs]
+        pairs = pairs[np.asarray(keep, dtype=bool)]
+    return pairs
+
+
+def pairs_from_bodies(model, ellipsoids, body_pairs, field="pairs"):
+    """(P, 2) ellipsoid pairs from a list of (body, body) given by name or id."""
+    ids = ellipsoids.body_ids(model)
+    rows = []
+    try:
+        items = list(body_pairs)
+    except TypeError:
+        raise ValueError(f"{field}: expected a list of (body, body) pairs, got {type(body_pairs).__name__}") from None
+    for k, pair in enumerate(items):
+        if isinstance(pair, str) or not hasattr(pair, "__len__") or len(pair) != 2:
+            raise ValueError(f"{field}[{k}]: expected a (body, body) pair, got {pair!r}")
+        resolved = []
+        for side, body in zip((0, 1), pair):
+            if isinstance(body, (int, np.integer)):
+                bid = int(body)
+                if not 0 <= bid < model.nbody:
+                    raise ValueError(f"{field}[{k}][{side}]: body id {bid} out of range [0, {model.nbody})")
+            else:
+                bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(body))
+                if bid < 0:
+                    raise ValueError(f"{field}[{k}][{side}]: the model has no body named {body!r}")
+            if not np.any(ids == bid):
+                raise ValueError(f"{field}[{k}][{side}]: body {body_label(model, bid)!r} has no ellipsoid")
+            resolved.append(bid)
+        if resolved[0] == resolved[1]:
+            raise ValueError(f"{field}[{k}]: a body cannot be paired with itself ({pair[0]!r})")
+        for i in np.flatnonzero(ids == resolved[0]):
+            for j in np.flatnonzero(ids == resolved[1]):
+                rows.append((int(i), int(j)))
+    if not rows:
+        raise ValueError(f"{field}: empty pair list")
+    return np.array(rows, dtype=np.int64)
+
+
+class CCDMonitor:
+    """Exact first contacts between fitted ellipsoids, one MuJoCo step at a time.
+
+    Args:
+        model, data: the simulation (``data`` is stepped by :meth:`step`).
+        ellipsoids: :class:`EllipsoidSet` (e.g. from :func:`mjccd.fit.fit_model`).
+        pairs: list of (body, body) names or ids; default :func:`default_pairs`.
+        motion: "rigid", "affine" or "chain" (see :func:`motions_between`).
+        on_contact: called with each reported :class:`StepContact`.
+        all_pairs: report every colliding pair, not only the first contact.
+    """
+
+    def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
+                 all_pairs=False):
+        if not isinstance(model, mujoco.MjModel):
+            raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+        if not isinstance(data, mujoco.MjData):
+            raise ValueError(f"data: expected a mujoco.MjData, got {type(data).__name__}")
+        if not isinstance(ellipsoids, EllipsoidSet):
+            raise ValueError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
+        if motion not in MOTIONS:
+            raise ValueError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+        if on_contact is not None and not callable(on_contact):
+            raise ValueError("on_contact: expected a callable or None")
+        self.model, self.data, self.ellipsoids = model, data, ellipsoids
+        self.motion, self.on_contact, self.all_pairs = motion, on_contact, bool(all_pairs)
+        self.body_ids = ellipsoids.body_ids(model)
+        self.pairs = default_pairs(model, ellipsoids) if pairs is None else pairs_from_bodies(
+            model, ellipsoids, pairs)
+        self.labels = [body_label(model, b) for b in range(model.nbody)]
+        self._kin = Kinematics(model)
+        self._scene = Scene(ellipsoids.radii, pairs=self.pairs, motion=motion) \
+            if motion != "chain" and len(self.pairs) else None
+        self._cached = None  # (state, poses) of the last end state
+        self.last_report = None
+
+    # ------------------------------------------------------------ stepping
+
+    def step(self, nstep=1):
+        """Run ``mj_step`` ``nstep`` times, checking each step; the earliest :class:`StepContact` or None."""
+        first = None
+        reports = []
+        for _ in range(int(nstep)):
+            s0 = capture(self.data)
+            mujoco.mj_step(self.model, self.data)
+            report = self._check(s0, capture(self.data))
+            reports.append(report)
+            if first is None and report.first is not None:
+                first = report.first
+        if len(reports) > 1:
+            self.last_report = StepReport(first, tuple(c for r in reports for c in r.contacts),
+                                          sum(r.pairs_checked for r in reports),
+                                          sum(r.pairs_solved for r in reports))
+        return first
+
+    def check(self, state_t0, state_t1):
+        """First contact while moving from state_t0 to state_t1 (``MjData``, :class:`State` or qpos).
+
+        With qpos vectors the mocap poses come from the monitor's data and the
+        contact time is counted from state_t0 with the step length ``model.opt.timestep``.
+        """
+        s0 = as_state(self.model, state_t0, "state_t0", mocap_from=self.data)
+        s1 = as_state(self.model, state_t1, "state_t1", mocap_from=self.data)
+        return self._check(s0, s1).first
+
+    # ------------------------------------------------------------ internals
+
+    def _poses(self, state):
+        c = self._cached
+        if c is not None and c[0].time == state.time and np.array_equal(c[0].qpos, state.qpos) \
+                and np.array_equal(c[0].mocap_pos, state.mocap_pos) \
+                and np.array_equal(c[0].mocap_quat, state.mocap_quat):
+            return c[1]
+        return self._kin.ellipsoid_poses(state, self.body_ids, self.ellipsoids.positions,
+                                         self.ellipsoids.quaternions)
+
+    def _check(self, s0, s1):
+        if len(self.pairs) == 0:
+            report = StepReport(None, (), 0, 0)
+        elif self._scene is not None:
+            report = self._check_scene(s0, s1)
+        else:
+            report = self._check_chain(s0, s1)
+        self.last_report = report
+        if self.on_contact is not None:
+            for c in (report.contacts if self.all_pairs else ((report.first,) if report.first else ())):
+                self.on_contact(c)
+        return report
+
+    def _seconds(self, s0, s1, fraction):
+        if s0.time is not None and s1.time is not None and s1.time > s0.time:
+            return s0.time + fraction * (s1.time - s0.time)
+        base = s0.time if s0.time is not None else 0.0
+        return base + fraction * self.model.opt.timestep
+
+    def _contact(self, s0, s1, i, j, fraction, point, normal, poses0):
+        if point is None:
+            r = self.ellipsoids.radii
+            status = STATUS[int(static_status_pose(r[i], poses0[i, :3], poses0[i, 3:],
+                                                   r[j], poses0[j, :3], poses0[j, 3:]))]
+            status = "touching" if status == "separate" else status
+        else:
+            status = "separate"
+        a, b = int(self.body_ids[i]), int(self.body_ids[j])
+        return StepContact(float(self._seconds(s0, s1, fraction)), float(fraction),
+                           (self.labels[a], self.labels[b]), (a, b), (int(i), int(j)),
+                           None if point is None else np.array(point, float),
+                           None if normal is None else np.array(normal, float), status)
+
+    def _check_scene(self, s0, s1):
+        """Rigid and affine motions: the batched :class:`mjccd.scene.Scene` pipeline."""
+        p0 = self._poses(s0)
+        p1 = self._kin.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions, self.ellipsoids.quaternions)
+        self._cached = (s1, p1)
+        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs)
+
+        def convert(pc):
+            i, j = self.pairs[pc.pair]
+            return self._contact(s0, s1, i, j, pc.time, pc.point, pc.normal, p0)
+
+        first = None if frame.first is None else convert(frame.first)
+        contacts = tuple(sorted((convert(c) for c in frame.contacts), key=lambda c: c.fraction))
+        return StepReport(first, contacts, frame.counters.pairs, frame.counters.solved_exactly)
+
+    def _check_chain(self, s0, s1):
+        """Chain motions: swept-ball prefilter, then the exact solver pair by pair."""
+        motions = motions_between(self.model, self.ellipsoids, s0, s1, "chain", body_ids=self.body_ids,
+                                  kinematics=self._kin)
+        p0 = self._poses(s0)
+        self._cached = None
+        radii = self.ellipsoids.radii
+        rmax = radii.max(axis=1)
+        balls = [sweep_sphere(m) if not isinstance(m, Static) else (m.position, 0.0) for m in motions]
+        shapes = [Ellipsoid(r) for r in radii]
+        t_max, first, contacts, solved = 1.0, None, [], 0
+        for i, j in self.pairs:
+            bi, bj = balls[i], balls[j]
+            if bi is not None and bj is not None:
+                gap = np.linalg.norm(bi[0] - bj[0]) - bi[1] - bj[1] - rmax[i] - rmax[j]
+                if gap > 1e-9 * (rmax[i] + rmax[j]):
+                    continue
+            solved += 1
+            hit = first_contact(shapes[i], motions[i], shapes[j], motions[j],
+                                t_max=1.0 if self.all_pairs else t_max)
+            if hit is None:
+                continue
+            c = self._contact(s0, s1, i, j, hit.time, hit.point, hit.normal, p0)
+            contacts.append(c)
+            if first is None or c.fraction < first.fraction:
+                first, t_max = c, c.fraction
+        contacts.sort(key=lambda c: c.fraction)
+        return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved)

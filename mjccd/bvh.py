@@ -34,7 +34,9 @@ _CHANNELS = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Z
 # the first matching pattern wins.  Values follow adult anthropometric girths
 # (thigh ~44 cm, calf ~36 cm, upper arm ~30 cm, forearm ~26 cm circumference).
 LIMB_RADII = (
-    ("finger|index|thumb|hand_end", 0.012),
+    ("thumb", 0.02),
+    ("handindex|fingerbase", 0.045),  # the fist: wrist to knuckles
+    ("finger|index", 0.012),
     ("toe", 0.025),
     ("foot|ankle", 0.04),
     ("upleg|thigh", 0.07),
@@ -440,6 +442,160 @@ def qpos_trajectory(clip, layout, frames=None):
 
     walk(0)
     return np.concatenate(cols, axis=1)
+
+
+def _limb_capsules(clip, index, scale):
+    """Capsules ``(p0, p1, radius)`` (metres, the joint's own frame) of the limbs starting at a joint."""
+    j = clip.joints[index]
+    r = limb_radius(j.name)
+    ends = [clip.joints[c].offset for c in j.children] + list(j.end_sites)
+    return [(np.zeros(3), scale * np.asarray(e, float), r) for e in ends
+            if np.linalg.norm(e) * scale >= 1e-6]
+
+
+def _quat_matrix(q):
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _matrix_quat(R):
+    """Unit quaternion [w, x, y, z] of a rotation matrix."""
+    m = R
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    cands = [(1 + tr, lambda s: [s / 4, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]),
+             (1 + m[0, 0] - m[1, 1] - m[2, 2], lambda s: [(m[2, 1] - m[1, 2]) / s, s / 4, (m[0, 1] + m[1, 0]) / s,
+                                                         (m[0, 2] + m[2, 0]) / s]),
+             (1 - m[0, 0] + m[1, 1] - m[2, 2], lambda s: [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, s / 4,
+                                                         (m[1, 2] + m[2, 1]) / s]),
+             (1 - m[0, 0] - m[1, 1] + m[2, 2], lambda s: [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s,
+                                                         (m[1, 2] + m[2, 1]) / s, s / 4])]
+    val, f = max(cands, key=lambda c: c[0])
+    q = np.array(f(2.0 * math.sqrt(val)))
+    q = q if q[0] >= 0 else -q
+    return q / np.linalg.norm(q)
+
+
+def rigid_groups(clip, layout):
+    """Capsules of each rigidly moving part: ``{joint index: [(p0, p1, r), ...]}`` in that joint's frame.
+
+    A part is a joint that moves (the root, or a joint with MuJoCo joints)
+    together with the frozen joints below it, placed at the layout's
+    reference frame.
+    """
+    groups = {}
+    ref = [layout.reference_frame]
+
+    def walk(index, owner, R, p):
+        if index == 0 or layout.moving(clip, index):
+            owner, R, p = index, np.eye(3), np.zeros(3)
+        caps = groups.setdefault(owner, [])
+        for a, b, r in _limb_capsules(clip, index, layout.scale):
+            caps.append((p + R @ a, p + R @ b, r))
+        for c in clip.joints[index].children:
+            if layout.moving(clip, c):
+                walk(c, owner, R, p)
+                continue
+            shift, q = _joint_motion(clip, c, ref)
+            pc = p + R @ (layout.scale * (clip.joints[c].offset + shift[0]))
+            walk(c, owner, R @ _quat_matrix(q[0]), pc)
+
+    walk(0, 0, np.eye(3), np.zeros(3))
+    return {k: v for k, v in groups.items() if v}
+
+
+def _ball_bound(v, r, q):
+    """Upper bound of max over |d| <= r of sum q (v + d)^2, for each row of v (n, 3).
+
+    Weak duality of the trust-region problem: every mu > max(q) gives
+    ``g(mu) = sum q v^2 mu / (mu - q) + mu r^2``, an upper bound, and the
+    smallest one equals the maximum.  A golden-section search on the convex g
+    gets close to it; the value returned is always a valid bound.
+    """
+    qmax = q.max()
+    lo = np.full(v.shape[0], np.log(1e-12 * qmax))
+    hi = np.full(v.shape[0], np.log(1e6 * qmax + np.sqrt((q * q * v * v).sum(axis=1)) / r.min()))
+
+    def g(x):
+        mu = qmax + np.exp(x)
+        return (q * v * v * (mu[:, None] / (mu[:, None] - q))).sum(axis=1) + mu * r * r
+
+    phi = (math.sqrt(5) - 1) / 2
+    for _ in range(80):
+        a = hi - phi * (hi - lo)
+        b = lo + phi * (hi - lo)
+        left = g(a) < g(b)
+        hi = np.where(left, b, hi)
+        lo = np.where(left, lo, a)
+    return np.minimum(g(lo), g(hi))
+
+
+def fit_capsules(capsules):
+    """A bounding ellipsoid ``(radii, centre, quaternion)`` that contains every capsule.
+
+    Containment is guaranteed: an ellipsoid is convex, so it contains a capsule
+    when it contains both end balls, and each ball's worst point is bounded
+    exactly (see :func:`_ball_bound`).  The axes come from the principal
+    directions of the capsules; their lengths are searched for least volume.
+    """
+    centres = np.array([c for a, b, _ in capsules for c in (a, b)], float)
+    r = np.array([rad for _, _, rad in capsules for _ in (0, 1)], float)
+    pts = np.concatenate([np.array([a + (b - a) * s for a, b, _ in capsules for s in np.linspace(0, 1, 9)])])
+    spread = pts - pts.mean(axis=0)
+    _, vecs = np.linalg.eigh(spread.T @ spread + 1e-12 * np.eye(3))
+    R = vecs[:, ::-1]
+    if np.linalg.det(R) < 0:
+        R[:, 2] = -R[:, 2]
+    local = centres @ R
+    mid = 0.5 * ((local - r[:, None]).min(axis=0) + (local + r[:, None]).max(axis=0))
+    v = local - mid
+    half = np.abs(v).max(axis=0) + r.max()
+
+    def fitted(logs):
+        axes = half * np.exp(logs)
+        s = math.sqrt(_ball_bound(v, r, 1.0 / axes ** 2).max())
+        return axes * s
+
+    def volume(logs):
+        return float(np.prod(fitted(logs)))
+
+    logs = np.zeros(3)
+    best = volume(logs)
+    step = 0.4
+    while step > 2e-3:
+        improved = False
+        for k in range(3):
+            for sign in (1.0, -1.0):
+                trial = logs.copy()
+                trial[k] += sign * step
+                val = volume(trial)
+                if val < best:
+                    logs, best, improved = trial, val, True
+        if not improved:
+            step /= 2
+    radii = fitted(logs) * (1.0 + 1e-9)
+    return radii, R @ mid, _matrix_quat(R)
+
+
+def bounding_geoms(clip, layout):
+    """MJCF lines of one bounding ellipsoid per rigid part, keyed by the joint whose body holds it."""
+    extra = {}
+    for index, caps in rigid_groups(clip, layout).items():
+        radii, centre, quat = fit_capsules(caps)
+        name = layout.prefix + _sanitize(clip.joints[index].name)
+        extra[clip.joints[index].name] = [
+            f'<geom name="{name}_bound" class="bound" size="{_fmt(radii)}" pos="{_fmt(centre)}" quat="{_fmt(quat)}"/>']
+    return extra
+
+
+def facing(clip, frames):
+    """Mean heading (radians about MuJoCo +z) and mean root position (3,) over the frames, no placement."""
+    layout = Layout("", 1.0, Placement(), frozenset(), 0)
+    pos, quat = root_pose(clip, layout, frames)
+    fwd = quat_rotate(quat, np.broadcast_to(np.array([0.0, 0.0, 1.0]), pos.shape))  # BVH +Z = forward
+    heading = math.atan2(fwd[:, 1].mean(), fwd[:, 0].mean())
+    return heading, pos.mean(axis=0)
 
 
 def model_xml(characters, *, model_name="bvh", floor=True, extra_worldbody=()):

@@ -1,0 +1,639 @@
+"""Trajectory replay: move a MuJoCo model's bounding ellipsoids along recorded ``qpos`` and find contacts.
+
+Between two consecutive frames every bounding ellipsoid follows the chosen
+motion model (``rigid``: centre and quaternion lerp; ``affine``: centre and
+shape-matrix lerp; ``chain``: the joints of its kinematic chain, hinge angles
+with tan(theta/2) linear), and every pair is checked exactly over the frame
+interval.  The bounding ellipsoids are the model's ellipsoid geoms in geom
+group 3 (all ellipsoid geoms when group 3 has none).  By default a pair is
+checked when its two ellipsoids hang under different top-level bodies and at
+least one of them moves.
+
+Outputs: a table of first contacts, ``contacts.json``, ``contacts.csv``,
+``timeline.png`` and, where an OpenGL backend works, a few rendered frames.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import pathlib
+import sys
+import time as _time
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from mjccd import bernstein as bz  # noqa: F401  (kernels below are compiled against it)
+from mjccd.ccd import NOISE, _balanced, build_F, rigid_first_contact, solve_intervals
+from mjccd.motion import quadric_affine, quadric_at
+from mjccd.quadric import touching_point
+
+MOTIONS = ("rigid", "affine", "chain")
+BOUND_GROUP = 3
+_jit = numba.njit(cache=True, nogil=True)
+
+# counters of one frame, in this order
+COUNTER_NAMES = ("pairs", "sphere_filtered", "solved", "separate_no_contact", "first_contacts", "in_contact_at_start")
+
+
+class ReplayError(ValueError):
+    """Bad replay input: the message names the file or field and what is wrong."""
+
+
+# ---------------------------------------------------------------- kernels
+
+
+@_jit
+def _affine_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1, t_max):
+    """As :func:`mjccd.ccd.rigid_first_contact`, for the affine interpolant (centre and shape lerp)."""
+    length = max(radii_a.max(), radii_b.max())
+    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
+    A2 = _balanced(*quadric_affine(radii_a / length, (pa0 - origin) / length, qa0,
+                                   (pa1 - origin) / length, qa1))
+    B2 = _balanced(*quadric_affine(radii_b / length, (pb0 - origin) / length, qb0,
+                                   (pb1 - origin) / length, qb1))
+    F = build_F(A2[0], A2[1], A2[2], B2[0], B2[1], B2[2])
+    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, True)
+    point = np.zeros(3)
+    normal = np.zeros(3)
+    if status0 != 1:
+        return status0, 0.0, point, normal
+    if intervals.shape[0] == 0:
+        return status0, -1.0, point, normal
+    t = intervals[0, 0]
+    p, n = touching_point(quadric_at(A2[0], A2[1], A2[2], t), quadric_at(B2[0], B2[1], B2[2], t), u)
+    return status0, t, origin + length * p, n
+
+
+@_jit
+def _frame_kernel(affine, radii, reach, pairs, pos0, quat0, pos1, quat1,
+                  status, toi, point, normal, counters):
+    """All pairs of one frame interval: moving-sphere filter, then the exact solver.
+
+    ``status``: 1 separate, 0 touching, -1 overlapping at the start; ``toi``:
+    first contact in [0, 1] or -1.  Each ellipsoid stays inside the ball of
+    radius ``reach`` (its largest radius) around its centre, and centres move
+    on straight lines under both motions, so the filter never drops a contact.
+    """
+    counters[0] += pairs.shape[0]
+    for k in range(pairs.shape[0]):
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        d0 = pos0[j] - pos0[i]
+        dd = (pos1[j] - pos1[i]) - d0
+        den = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2]
+        s = 0.0
+        if den > 0.0:
+            s = -(d0[0] * dd[0] + d0[1] * dd[1] + d0[2] * dd[2]) / den
+            s = min(1.0, max(0.0, s))
+        m = d0 + s * dd
+        rr = reach[i] + reach[j]
+        if m[0] * m[0] + m[1] * m[1] + m[2] * m[2] > rr * rr * (1.0 + 1e-9) + 1e-300:
+            status[k] = 1
+            toi[k] = -1.0
+            counters[1] += 1
+            continue
+        counters[2] += 1
+        qa1 = quat1[i].copy()
+        if qa1[0] * quat0[i, 0] + qa1[1] * quat0[i, 1] + qa1[2] * quat0[i, 2] + qa1[3] * quat0[i, 3] < 0.0:
+            qa1 = -qa1
+        qb1 = quat1[j].copy()
+        if qb1[0] * quat0[j, 0] + qb1[1] * quat0[j, 1] + qb1[2] * quat0[j, 2] + qb1[3] * quat0[j, 3] < 0.0:
+            qb1 = -qb1
+        if affine:
+            st, t, p, n = _affine_first_contact(radii[i], pos0[i], quat0[i], pos1[i], qa1,
+                                                radii[j], pos0[j], quat0[j], pos1[j], qb1, 1.0)
+        else:
+            st, t, p, n = rigid_first_contact(radii[i], pos0[i], quat0[i], pos1[i], qa1,
+                                              radii[j], pos0[j], quat0[j], pos1[j], qb1, 1.0)
+        status[k] = st
+        toi[k] = t
+        point[k] = p
+        normal[k] = n
+        if st != 1:
+            counters[5] += 1
+        elif t >= 0.0:
+            counters[4] += 1
+        else:
+            counters[3] += 1
+
+
+# ---------------------------------------------------------------- model and trajectory
+
+
+@dataclass
+class Bounds:
+    """The bounding ellipsoids of a model and the pairs to check."""
+
+    geom_ids: np.ndarray          # (N,) MuJoCo geom ids
+    names: list                   # (N,) geom names
+    body_names: list              # (N,) names of the bodies holding them
+    radii: np.ndarray             # (N, 3)
+    pairs: np.ndarray             # (P, 2) indices into the N ellipsoids
+
+
+def load_model(model_path):
+    """Compile an MJCF file; errors name the file."""
+    import mujoco
+
+    path = pathlib.Path(model_path)
+    if not path.is_file():
+        raise ReplayError(f"{model_path}: model file not found")
+    try:
+        return mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else "cannot compile"
+        raise ReplayError(f"{model_path}: not a valid MJCF model: {first}") from None
+
+
+def bounding_ellipsoids(model, pairs=None):
+    """The model's bounding ellipsoids and the pairs to check (see the module docstring)."""
+    import mujoco
+
+    ell = model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID
+    ids = np.nonzero(ell & (model.geom_group == BOUND_GROUP))[0]
+    if len(ids) == 0:
+        ids = np.nonzero(ell)[0]
+    if len(ids) < 2:
+        raise ReplayError(f"model: needs at least two ellipsoid geoms to check, found {len(ids)}")
+    names = [model.geom(g).name or f"geom{g}" for g in ids]
+    bodies = model.geom_bodyid[ids]
+    body_names = [model.body(b).name or f"body{b}" for b in bodies]
+    if pairs is None:
+        top = model.body_rootid[bodies]
+        moving = _moves(model, bodies)
+        pairs = [(a, b) for a in range(len(ids)) for b in range(a + 1, len(ids))
+                 if top[a] != top[b] and (moving[a] or moving[b])]
+        if not pairs:
+            raise ReplayError("model: no pair of ellipsoids under different top-level bodies that moves")
+    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    if pairs.size and (pairs.min() < 0 or pairs.max() >= len(ids) or np.any(pairs[:, 0] == pairs[:, 1])):
+        raise ReplayError(f"pairs: indices must be distinct and within 0..{len(ids) - 1}")
+    return Bounds(ids, names, body_names, model.geom_size[ids].copy(), pairs)
+
+
+def _moves(model, bodies):
+    """Whether each body has a joint on its path to the world."""
+    out = []
+    for b in bodies:
+        moving = False
+        while b > 0 and not moving:
+            moving = model.body_jntnum[b] > 0
+            b = model.body_parentid[b]
+        out.append(bool(moving))
+    return np.array(out)
+
+
+def load_trajectory(traj, model):
+    """``(qpos (T, nq), time (T))`` from an .npz (qpos, time) or a .bvh clip made for this model."""
+    path = pathlib.Path(traj)
+    if not path.is_file():
+        raise ReplayError(f"{traj}: trajectory file not found")
+    if path.suffix.lower() == ".bvh":
+        from mjccd import bvh
+
+        _, qpos, time, _ = bvh.import_bvh(path)
+    elif path.suffix.lower() == ".npz":
+        try:
+            with np.load(path) as data:
+                if "qpos" not in data.files:
+                    raise ReplayError(f"{traj}: no 'qpos' array (has {sorted(data.files)})")
+                qpos = np.asarray(data["qpos"], dtype=np.float64)
+                time = np.asarray(data["time"], dtype=np.float64) if "time" in data.files else None
+        except (OSError, ValueError) as exc:
+            if isinstance(exc, ReplayError):
+                raise
+            raise ReplayError(f"{traj}: not a readable .npz file ({exc})") from None
+        if time is None:
+            time = np.arange(qpos.shape[0]) * model.opt.timestep if qpos.ndim == 2 else None
+    else:
+        raise ReplayError(f"{traj}: unknown trajectory type {path.suffix!r} (expected .npz or .bvh)")
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq:
+        raise ReplayError(f"{traj}: qpos must have shape (T, {model.nq}) for this model, got {qpos.shape}")
+    if qpos.shape[0] < 2:
+        raise ReplayError(f"{traj}: qpos needs at least 2 frames, got {qpos.shape[0]}")
+    if time.shape != (qpos.shape[0],):
+        raise ReplayError(f"{traj}: time must have shape ({qpos.shape[0]},), got {time.shape}")
+    if not (np.all(np.isfinite(qpos)) and np.all(np.isfinite(time))):
+        raise ReplayError(f"{traj}: qpos or time holds NaN or infinity")
+    if np.any(np.diff(time) <= 0):
+        k = int(np.nonzero(np.diff(time) <= 0)[0][0])
+        raise ReplayError(f"{traj}: time must increase, but time[{k + 1}] <= time[{k}]")
+    return np.ascontiguousarray(qpos), np.ascontiguousarray(time)
+
+
+def geom_poses(model, qpos, geom_ids):
+    """World positions (T, N, 3) and unit quaternions (T, N, 4) of the geoms at every frame."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    T, N = qpos.shape[0], len(geom_ids)
+    pos = np.empty((T, N, 3))
+    mats = np.empty((T, N, 9))
+    for k in range(T):
+        data.qpos[:] = qpos[k]
+        mujoco.mj_kinematics(model, data)
+        pos[k] = data.geom_xpos[geom_ids]
+        mats[k] = data.geom_xmat[geom_ids]
+    return pos, _mat_to_quat(mats.reshape(T, N, 3, 3))
+
+
+def _mat_to_quat(R):
+    """Unit quaternions [w, x, y, z] (..., 4) of rotation matrices (..., 3, 3)."""
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    cand = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
+    best = cand.argmax(axis=-1)
+    s = 2.0 * np.sqrt(np.maximum(np.take_along_axis(cand, best[..., None], -1)[..., 0], 1e-300))
+    d21, d02, d10 = R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]
+    s01, s02, s12 = R[..., 0, 1] + R[..., 1, 0], R[..., 0, 2] + R[..., 2, 0], R[..., 1, 2] + R[..., 2, 1]
+    q = np.stack([
+        np.select([best == 0, best == 1, best == 2], [s / 4, d21 / s, d02 / s], d10 / s),
+        np.select([best == 0, best == 1, best == 2], [d21 / s, s / 4, s01 / s], s02 / s),
+        np.select([best == 0, best == 1, best == 2], [d02 / s, s01 / s, s / 4], s12 / s),
+        np.select([best == 0, best == 1, best == 2], [d10 / s, s02 / s, s12 / s], s / 4)], -1)
+    q *= np.where(q[..., :1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+# ---------------------------------------------------------------- one frame
+
+
+@dataclass
+class FrameContacts:
+    """Pair results of one frame interval: arrays over the checked pairs."""
+
+    status: np.ndarray    # (P,) 1 separate, 0 touching, -1 overlapping at the frame start
+    toi: np.ndarray       # (P,) first contact in [0, 1], -1 when none
+    point: np.ndarray     # (P, 3)
+    normal: np.ndarray    # (P, 3)
+
+
+class FrameChecker:
+    """Checks all pairs over one frame interval; the one place the per-frame CCD runs."""
+
+    def __init__(self, bounds, motion, model=None):
+        self.bounds = bounds
+        self.motion = motion
+        self.model = model
+        self.radii = np.ascontiguousarray(bounds.radii)
+        self.reach = self.radii.max(axis=1).copy()
+        self.counters = np.zeros(len(COUNTER_NAMES), dtype=np.int64)
+        P = len(bounds.pairs)
+        self._status = np.empty(P, dtype=np.int64)
+        self._toi = np.empty(P)
+        self._point = np.zeros((P, 3))
+        self._normal = np.zeros((P, 3))
+
+    def step(self, pos0, quat0, pos1, quat1, qpos0=None, qpos1=None):
+        """Results for the interval from poses (N, 3)/(N, 4) at its start to those at its end."""
+        if self.motion == "chain":
+            self._chain_step(qpos0, qpos1)
+        else:
+            _frame_kernel(self.motion == "affine", self.radii, self.reach, self.bounds.pairs,
+                          pos0, quat0, pos1, quat1, self._status, self._toi, self._point,
+                          self._normal, self.counters)
+        return FrameContacts(self._status, self._toi, self._point, self._normal)
+
+    def _chain_step(self, qpos0, qpos1):
+        from mjccd import Ellipsoid, first_contact
+
+        motions = [chain_motion(self.model, g, qpos0, qpos1) for g in self.bounds.geom_ids]
+        self.counters[0] += len(self.bounds.pairs)
+        for k, (i, j) in enumerate(self.bounds.pairs):
+            self.counters[2] += 1
+            c = first_contact(Ellipsoid(self.radii[i]), motions[i], Ellipsoid(self.radii[j]), motions[j])
+            if c is None:
+                self._status[k], self._toi[k] = 1, -1.0
+                self.counters[3] += 1
+            elif c.point is None:
+                self._status[k], self._toi[k] = (0 if c.status_at_start == "touching" else -1), 0.0
+                self.counters[5] += 1
+            else:
+                self._status[k], self._toi[k] = 1, c.time
+                self._point[k], self._normal[k] = c.point, c.normal
+                self.counters[4] += 1
+
+
+def chain_motion(model, geom_id, qpos0, qpos1):
+    """The exact articulated motion (:class:`mjccd.Chain`) of a geom between two qpos."""
+    import mujoco
+
+    from mjccd import Ball, Chain, Fixed, Free, Hinge, Slide
+
+    path = []
+    b = model.geom_bodyid[geom_id]
+    while b > 0:
+        path.append(b)
+        b = model.body_parentid[b]
+    elements = []
+    for b in reversed(path):
+        joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+        if not any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in joints):
+            elements.append(Fixed(model.body_pos[b], model.body_quat[b]))
+        for j in joints:
+            a = model.jnt_qposadr[j]
+            kind = model.jnt_type[j]
+            name = model.joint(j).name or f"joint{j}"
+            if kind == mujoco.mjtJoint.mjJNT_FREE:
+                elements.append(Free(qpos0[a:a + 3], qpos0[a + 3:a + 7], qpos1[a:a + 3], qpos1[a + 3:a + 7]))
+                continue
+            anchor = model.jnt_pos[j]
+            shifted = bool(np.any(anchor != 0.0))
+            if shifted:
+                elements.append(Fixed(anchor))
+            if kind == mujoco.mjtJoint.mjJNT_BALL:
+                elements.append(Ball(qpos0[a:a + 4], qpos1[a:a + 4]))
+            elif kind == mujoco.mjtJoint.mjJNT_HINGE:
+                if max(abs(qpos0[a]), abs(qpos1[a])) >= math.pi:
+                    raise ReplayError(f"qpos: hinge {name!r} must stay within (-pi, pi) for the chain motion")
+                elements.append(Hinge(model.jnt_axis[j], qpos0[a], qpos1[a]))
+            else:
+                elements.append(Slide(model.jnt_axis[j], qpos0[a], qpos1[a]))
+            if shifted:
+                elements.append(Fixed(-anchor))
+    elements.append(Fixed(model.geom_pos[geom_id], model.geom_quat[geom_id]))
+    return Chain(elements)
+
+
+# ---------------------------------------------------------------- replay
+
+
+@dataclass
+class ReplayResult:
+    """Everything a replay found; ``contacts`` are first contacts, ``in_contact`` (T-1, P) flags."""
+
+    model: str
+    trajectory: str
+    motion: str
+    time: np.ndarray
+    bounds: Bounds
+    contacts: list = field(default_factory=list)
+    in_contact: np.ndarray = None
+    counters: dict = field(default_factory=dict)
+    timing: dict = field(default_factory=dict)
+    files: list = field(default_factory=list)
+
+    @property
+    def n_frames(self):
+        return len(self.time)
+
+
+def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progress=True, render=True,
+           max_rendered=4):
+    """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
+
+    Args:
+        model_path: MJCF file with bounding ellipsoid geoms (group 3).
+        traj: ``.npz`` with ``qpos`` (T, nq) and ``time`` (T), or a ``.bvh`` clip.
+        motion: ``"rigid"``, ``"affine"`` or ``"chain"`` between consecutive frames.
+        out_dir: where to write contacts.json, contacts.csv, timeline.png and frames (None: nothing).
+        pairs: (P, 2) ellipsoid index pairs to check instead of the default.
+    Returns:
+        a :class:`ReplayResult`.
+    """
+    if motion not in MOTIONS:
+        raise ReplayError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+    model = load_model(model_path)
+    qpos, time = load_trajectory(traj, model)
+    bounds = bounding_ellipsoids(model, pairs)
+    result = ReplayResult(str(model_path), str(traj), motion, time, bounds)
+    _run(model, qpos, bounds, motion, result, progress)
+    if out_dir is not None:
+        out = pathlib.Path(out_dir)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ReplayError(f"{out_dir}: cannot create the output folder: {exc.strerror}") from None
+        write_reports(result, out)
+        if render:
+            result.files += render_frames(model, qpos, result, out, max_rendered)
+    return result
+
+
+def _run(model, qpos, bounds, motion, result, progress):
+    """Kinematics for all frames, then the per-frame checks; fills ``result``."""
+    start = _time.perf_counter()
+    pos, quat = geom_poses(model, qpos, bounds.geom_ids)
+    t_kin = _time.perf_counter() - start
+    checker = FrameChecker(bounds, motion, model)
+    n = len(result.time) - 1
+    P = len(bounds.pairs)
+    in_contact = np.zeros((n, P), dtype=bool)
+    frames = range(n)
+    if progress:
+        from tqdm import tqdm
+
+        frames = tqdm(frames, desc="replay", unit="frame", file=sys.stderr, leave=False)
+    start = _time.perf_counter()
+    for k in frames:
+        fc = checker.step(pos[k], quat[k], pos[k + 1], quat[k + 1], qpos[k], qpos[k + 1])
+        hit = (fc.status != 1) | (fc.toi >= 0.0)
+        in_contact[k] = hit
+        for p in np.nonzero((fc.status == 1) & (fc.toi >= 0.0))[0]:
+            i, j = bounds.pairs[p]
+            dt = result.time[k + 1] - result.time[k]
+            result.contacts.append({
+                "frame": int(k), "toi": float(fc.toi[p]), "time": float(result.time[k] + fc.toi[p] * dt),
+                "ellipsoids": [bounds.names[i], bounds.names[j]],
+                "bodies": [bounds.body_names[i], bounds.body_names[j]],
+                "point": [float(x) for x in fc.point[p]], "normal": [float(x) for x in fc.normal[p]]})
+    t_ccd = _time.perf_counter() - start
+    result.in_contact = in_contact
+    result.counters = {name: int(v) for name, v in zip(COUNTER_NAMES, checker.counters)}
+    result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
+                     "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
+
+
+def warm_up(motion="rigid"):
+    """Compile (or load from cache) the per-frame kernel before timing a replay."""
+    radii = np.array([[1.0, 0.5, 0.5], [1.0, 0.5, 0.5]])
+    pos0 = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    pos1 = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    quat = np.array([[1.0, 0.0, 0.0, 0.0]] * 2)
+    b = Bounds(np.arange(2), ["a", "b"], ["a", "b"], radii, np.array([[0, 1]]))
+    FrameChecker(b, "affine" if motion == "affine" else "rigid").step(pos0, quat, pos1, quat)
+
+
+# ---------------------------------------------------------------- reports
+
+
+def contact_table(result, max_rows=30):
+    """Terminal table of the first contacts: frame, time, pair, point."""
+    rows = result.contacts
+    if not rows:
+        return "no contact"
+    lines = [f"{'frame':>6} {'time [s]':>12}  {'pair':<44} point [m]"]
+    for c in rows[:max_rows]:
+        pair = f"{c['bodies'][0]} / {c['bodies'][1]}"
+        p = "(" + ", ".join(f"{x:+.4f}" for x in c["point"]) + ")"
+        lines.append(f"{c['frame']:>6} {c['time']:>12.6f}  {pair:<44} {p}")
+    if len(rows) > max_rows:
+        lines.append(f"... {len(rows) - max_rows} more first contacts (see contacts.csv)")
+    return "\n".join(lines)
+
+
+def summary(result):
+    """A few lines: frames, pairs, contacts, filter counters, timing."""
+    c = result.counters
+    t = result.timing
+    frames_hit = int(result.in_contact.any(axis=1).sum()) if result.in_contact is not None else 0
+    pairs_hit = int(result.in_contact.any(axis=0).sum()) if result.in_contact is not None else 0
+    lines = [
+        f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.bounds.names)} ellipsoids, "
+        f"{len(result.bounds.pairs)} pairs, motion {result.motion}",
+        f"first contacts: {len(result.contacts)}; frames with contact: {frames_hit}; "
+        f"pairs ever in contact: {pairs_hit}",
+        "filter: " + ", ".join(f"{k} {v}" for k, v in c.items()),
+        f"time: kinematics {t['kinematics_s'] * 1e3:.1f} ms, CCD {t['ccd_s'] * 1e3:.1f} ms, "
+        f"{t['frames_per_s']:.0f} frames/s",
+    ]
+    return "\n".join(lines)
+
+
+def _overlap_spans(result):
+    spans = []
+    for p in np.nonzero(result.in_contact.any(axis=0))[0]:
+        col = result.in_contact[:, p].astype(np.int8)
+        edges = np.diff(np.concatenate([[0], col, [0]]))
+        starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+        i, j = result.bounds.pairs[p]
+        spans.append({"ellipsoids": [result.bounds.names[i], result.bounds.names[j]],
+                      "bodies": [result.bounds.body_names[i], result.bounds.body_names[j]],
+                      "frames": [[int(a), int(b) - 1] for a, b in zip(starts, ends)]})
+    return spans
+
+
+def write_reports(result, out):
+    """contacts.json, contacts.csv and timeline.png in ``out``."""
+    doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
+           "frames": result.n_frames, "ellipsoids": result.bounds.names, "pairs": len(result.bounds.pairs),
+           "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
+           "counters": result.counters, "timing": result.timing}
+    try:
+        (out / "contacts.json").write_text(json.dumps(doc, indent=1) + "\n")
+        with open(out / "contacts.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["frame", "time", "toi", "ellipsoid_a", "ellipsoid_b", "body_a", "body_b",
+                        "px", "py", "pz", "nx", "ny", "nz"])
+            for c in result.contacts:
+                w.writerow([c["frame"], repr(c["time"]), repr(c["toi"]), *c["ellipsoids"], *c["bodies"],
+                            *map(repr, c["point"]), *map(repr, c["normal"])])
+    except OSError as exc:
+        raise ReplayError(f"{out}: cannot write the report: {exc.strerror}") from None
+    result.files += [str(out / "contacts.json"), str(out / "contacts.csv")]
+    result.files.append(plot_timeline(result, out / "timeline.png"))
+
+
+def plot_timeline(result, path):
+    """Colliding body pairs over time: bars while in contact, dots at first contacts."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    spans = _overlap_spans(result)
+    labels = [f"{s['bodies'][0]} / {s['bodies'][1]}" for s in spans]
+    fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(spans) + 1.2)))
+    t = result.time
+    for row, s in enumerate(spans):
+        ax.broken_barh([(t[a], t[b + 1] - t[a]) for a, b in s["frames"]], (row - 0.35, 0.7),
+                       facecolors="tab:blue", alpha=0.5)
+        hits = [c["time"] for c in result.contacts if c["ellipsoids"] == s["ellipsoids"]]
+        ax.plot(hits, [row] * len(hits), "o", color="tab:red", ms=4)
+    ax.set_yticks(range(len(spans)))
+    ax.set_yticklabels(labels, fontsize=7)
+    ax.set_xlim(t[0], t[-1])
+    ax.set_ylim(-1, max(len(spans), 1))
+    ax.set_xlabel("time [s]")
+    ax.set_title(f"{pathlib.Path(result.model).name}: contacts ({result.motion} motion); red dots: first contacts")
+    fig.tight_layout()
+    try:
+        fig.savefig(path, dpi=110)
+    except OSError as exc:
+        raise ReplayError(f"{path}: cannot write the plot: {exc.strerror}") from None
+    finally:
+        plt.close(fig)
+    return str(path)
+
+
+def render_frames(model, qpos, result, out, count=4):
+    """PNG frames at the first few first contacts, colliding ellipsoids in red; [] without OpenGL."""
+    if not result.contacts or count <= 0:
+        return []
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"
+    try:
+        import mujoco
+
+        renderer = mujoco.Renderer(model, 480, 640)
+    except Exception as exc:  # no usable OpenGL context on this machine
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"rendering skipped: no OpenGL backend ({msg}); set MUJOCO_GL=egl or osmesa", file=sys.stderr)
+        return []
+    from matplotlib.image import imsave
+
+    data = mujoco.MjData(model)
+    opt = mujoco.MjvOption()
+    opt.geomgroup[BOUND_GROUP] = 1
+    cam = mujoco.MjvCamera()
+    picked, seen = [], set()
+    for c in result.contacts:
+        if c["frame"] not in seen:
+            seen.add(c["frame"])
+            picked.append(c)
+        if len(picked) == count:
+            break
+    files = []
+    rgba = model.geom_rgba.copy()
+    name_to_geom = dict(zip(result.bounds.names, result.bounds.geom_ids))
+    try:
+        for c in picked:
+            k = c["frame"]
+            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc["ellipsoids"]}
+            model.geom_rgba[:] = rgba
+            for g in red:
+                model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
+            data.qpos[:] = qpos[k + 1] if c["toi"] > 0.5 else qpos[k]
+            mujoco.mj_forward(model, data)
+            cam.lookat[:] = c["point"]
+            cam.distance, cam.azimuth, cam.elevation = 2.5, 60.0, -15.0
+            renderer.update_scene(data, cam, scene_option=opt)
+            path = out / f"frame_{k:05d}.png"
+            imsave(path, renderer.render())
+            files.append(str(path))
+    finally:
+        model.geom_rgba[:] = rgba
+        renderer.close()
+    return files
+
+
+# ---------------------------------------------------------------- command line
+
+
+def main(argv=None):
+    """``mjccd replay MODEL.xml TRAJ [--motion ...] [--out DIR]``; returns the exit status."""
+    parser = argparse.ArgumentParser(prog="mjccd replay",
+                                     description="Replay a trajectory and report the first contacts "
+                                                 "between bounding ellipsoids.")
+    parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 3)")
+    parser.add_argument("traj", help=".npz with qpos (T x nq) and time (T), or a .bvh clip")
+    parser.add_argument("--motion", choices=MOTIONS, default="rigid", help="motion between frames")
+    parser.add_argument("--out", help="folder for contacts.json, contacts.csv, timeline.png, frames")
+    parser.add_argument("--no-render", action="store_true", help="do not render frames")
+    parser.add_argument("--rows", type=int, default=30, help="rows of the contact table (default 30)")
+    args = parser.parse_args(argv)
+    if not args.no_render and "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"  # must be chosen before mujoco is first imported
+    try:
+        warm_up(args.motion)
+        result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render)
+    except ValueError as exc:
+        print(f"mjccd replay: {exc}", file=sys.stderr)
+        return 2
+    print(contact_table(result, args.rows))
+    print(summary(result))
+    if args.out:
+        print("wrote " + ", ".join(result.files))
+    return 0

@@ -15,7 +15,7 @@ from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture,
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StepContact:
     """First contact of one pair of bodies within one simulator step.
 
@@ -40,7 +40,7 @@ class StepContact:
     status_at_start: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StepReport:
     """Everything one check found: the first contact (or None), all colliding pairs when asked, counts."""
 

@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 
 from mjccd import bernstein as bz
-from mjccd.motion import Affine, Ball, Chain, Fixed, Free, Hinge, Rigid, Slide, Static
+from mjccd.motion import Affine, Ball, Chain, Fixed, Free, Hinge, Rigid, Static, w_of_translation
 
 MOTIONS = ("rigid", "affine", "chain")
 
@@ -141,6 +141,17 @@ def interpolate_qpos(model, qpos0, qpos1, t):
     return out
 
 
+class _Slide:
+    """Slide-joint chain element: translation ``s(t) axis``, s linear from s0 to s1."""
+
+    def __init__(self, axis, s0, s1):
+        self.axis = np.asarray(axis, float) / np.linalg.norm(axis)
+        self.s0, self.s1 = float(s0), float(s1)
+
+    def w(self):
+        return w_of_translation(np.ascontiguousarray(np.stack([self.axis * self.s0, self.axis * self.s1], axis=1)))
+
+
 def _body_elements(model, body, state0, state1, poses0, poses1):
     """Chain elements from the world down to a body's frame."""
     path = []
@@ -167,7 +178,7 @@ def _body_elements(model, body, state0, state1, poses0, poses1):
             anchor = model.jnt_pos[j]
             if kind == mujoco.mjtJoint.mjJNT_SLIDE:
                 ref = model.qpos0[adr]
-                elements.append(Slide(model.jnt_axis[j], state0.qpos[adr] - ref, state1.qpos[adr] - ref))
+                elements.append(_Slide(model.jnt_axis[j], state0.qpos[adr] - ref, state1.qpos[adr] - ref))
                 continue
             if kind == mujoco.mjtJoint.mjJNT_HINGE:
                 ref = model.qpos0[adr]

@@ -1,0 +1,268 @@
+"""MuJoCo layer: motions between states, pair sets, the step monitor, contacts at known times."""
+import mujoco
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd.fit import fit_model
+from mjccd.mujoco import (CCDMonitor, EllipsoidSet, Kinematics, State, capture, default_pairs,
+                          interpolate_qpos, motions_between)
+
+ARM = """
+<mujoco>
+ <worldbody>
+  <body name="base" pos="0.1 0.2 0.3" quat="0.9 0.1 0.2 0.3"><freejoint/>
+   <geom type="box" size="0.1 0.1 0.05"/>
+   <body name="upper" pos="0 0 0.1" euler="0.2 0 0">
+    <joint name="shoulder" type="hinge" axis="0 1 0" pos="0 0 -0.02" ref="0.3"/>
+    <geom type="capsule" fromto="0 0 0 0 0 0.3" size="0.04"/>
+    <body name="fore" pos="0 0 0.3">
+     <joint name="elbow" type="hinge" axis="1 0.5 0" pos="0.01 0 0"/>
+     <joint name="twist" type="hinge" axis="0 0 1"/>
+     <geom type="capsule" fromto="0 0 0 0 0 0.25" size="0.03"/>
+     <body name="slider" pos="0 0 0.25">
+      <joint name="extend" type="slide" axis="0 0.3 1" ref="0.01"/>
+      <geom type="box" size="0.02 0.02 0.04"/>
+      <body name="hand" pos="0 0 0.05">
+       <joint name="wrist" type="ball" pos="0 0 -0.01"/>
+       <geom type="ellipsoid" size="0.03 0.05 0.02" pos="0.01 0 0.02"/>
+      </body>
+     </body>
+    </body>
+   </body>
+  </body>
+  <body name="post" pos="1 0 0"><geom type="cylinder" size="0.05 0.5"/></body>
+ </worldbody>
+ <contact><exclude body1="base" body2="slider"/></contact>
+</mujoco>
+"""
+
+THROW = """
+<mujoco>
+ <option gravity="0 0 0" timestep="0.002"><flag contact="disable"/></option>
+ <worldbody>
+  <body name="left" pos="-0.5 0 0"><freejoint/><geom type="sphere" size="0.1"/></body>
+  <body name="right" pos="0.5 0 0"><freejoint/><geom type="ellipsoid" size="0.2 0.1 0.15"/></body>
+ </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def arm():
+    m = mujoco.MjModel.from_xml_string(ARM)
+    return m, fit_model(m)
+
+
+def _random_qpos(model, rng, scale=0.8):
+    d = mujoco.MjData(model)
+    q = model.qpos0.copy()
+    for j in range(model.njnt):
+        adr = model.jnt_qposadr[j]
+        t = model.jnt_type[j]
+        if t == mujoco.mjtJoint.mjJNT_FREE:
+            q[adr:adr + 3] = rng.normal(size=3) * 0.2
+            quat = rng.normal(size=4)
+            q[adr + 3:adr + 7] = quat / np.linalg.norm(quat)
+        elif t == mujoco.mjtJoint.mjJNT_BALL:
+            quat = np.r_[1.0, rng.normal(size=3) * scale * 0.5]
+            q[adr:adr + 4] = quat / np.linalg.norm(quat)
+        else:
+            q[adr] += rng.uniform(-scale, scale)
+    d.qpos[:] = q
+    return q
+
+
+def _ellipsoid_frames(model, es, qpos):
+    d = mujoco.MjData(model)
+    d.qpos[:] = qpos
+    mujoco.mj_kinematics(model, d)
+    out = []
+    for b, p, q in zip(es.body_ids(model), es.positions, es.quaternions):
+        R = d.xmat[b].reshape(3, 3)
+        Re = np.empty(9)
+        mujoco.mju_quat2Mat(Re, q)
+        out.append(np.hstack([R @ Re.reshape(3, 3), (d.xpos[b] + R @ p)[:, None]]))
+    return out
+
+
+def test_rigid_motion_matches_mujoco_at_both_ends(arm):
+    model, es = arm
+    rng = np.random.default_rng(1)
+    q0, q1 = _random_qpos(model, rng), _random_qpos(model, rng)
+    d0, d1 = mujoco.MjData(model), mujoco.MjData(model)
+    d0.qpos[:], d1.qpos[:] = q0, q1
+    motions = motions_between(model, es, d0, d1, "rigid")
+    for t, q in ((0.0, q0), (1.0, q1)):
+        for m, want in zip(motions, _ellipsoid_frames(model, es, q)):
+            np.testing.assert_allclose(m.transform(t), want, atol=1e-12)
+
+
+def test_chain_motion_is_forward_kinematics_of_interpolated_joints(arm):
+    model, es = arm
+    rng = np.random.default_rng(2)
+    for _ in range(3):
+        q0, q1 = _random_qpos(model, rng), _random_qpos(model, rng)
+        motions = motions_between(model, es, q0, q1, "chain")
+        for t in (0.0, 0.25, 0.6, 1.0):
+            qt = interpolate_qpos(model, q0, q1, t)
+            for m, want in zip(motions, _ellipsoid_frames(model, es, qt)):
+                np.testing.assert_allclose(m.transform(t), want, atol=1e-10)
+    np.testing.assert_allclose(interpolate_qpos(model, q0, q1, 0.0), q0, atol=1e-14)
+    hinges = [model.jnt_qposadr[j] for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    np.testing.assert_allclose(interpolate_qpos(model, q0, q1, 1.0)[hinges], q1[hinges], atol=1e-14)
+
+
+def test_chain_hinge_beyond_pi_uses_offset_path():
+    m = mujoco.MjModel.from_xml_string("""<mujoco><worldbody><body name="wheel">
+        <joint type="hinge" axis="0 0 1"/><geom type="box" size="0.3 0.05 0.05" pos="0.2 0 0"/></body>
+        </worldbody></mujoco>""")
+    es = fit_model(m)
+    q0, q1 = np.array([3.0]), np.array([3.5])
+    (motion,) = motions_between(m, es, q0, q1, "chain")
+    for t in (0.0, 0.5, 1.0):
+        np.testing.assert_allclose(motion.transform(t), _ellipsoid_frames(m, es, interpolate_qpos(m, q0, q1, t))[0],
+                                   atol=1e-10)
+    with pytest.raises(ValueError, match="hinge turns by"):
+        motions_between(m, es, np.array([0.0]), np.array([3.5]), "chain")
+
+
+def test_default_pairs(arm):
+    model, es = arm
+    names = es.bodies
+    pairs = {(names[i], names[j]) for i, j in default_pairs(model, es, drop_overlapping_at_qpos0=False)}
+    assert ("base", "upper") not in pairs and ("upper", "fore") not in pairs  # joined by a joint
+    assert ("base", "slider") not in pairs  # <exclude>
+    assert ("base", "fore") in pairs and ("upper", "post") in pairs
+    dropped = {(names[i], names[j]) for i, j in default_pairs(model, es)}
+    assert dropped <= pairs and ("upper", "post") in dropped
+    assert ("fore", "hand") not in dropped  # overlapping in the reference pose
+
+
+def _throw(t_star, speed=7.0):
+    """Two free bodies flying at each other that first touch at simulation time t_star."""
+    m = mujoco.MjModel.from_xml_string(THROW)
+    d = mujoco.MjData(m)
+    gap = 1.0 - 0.1 - 0.2
+    d.qvel[0] = speed
+    d.qvel[6] = -speed
+    d.qpos[0] = -0.5 - (2 * speed * t_star - gap) / 2
+    d.qpos[7] = 0.5 + (2 * speed * t_star - gap) / 2
+    return m, d
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine", "chain"])
+def test_known_contact_time(motion):
+    t_star = 0.0123457
+    m, d = _throw(t_star)
+    es = fit_model(m)
+    seen = []
+    monitor = CCDMonitor(m, d, es, motion=motion, on_contact=seen.append)
+    contact = None
+    while contact is None and d.time < 0.05:
+        contact = monitor.step()
+    assert contact is not None
+    dt = m.opt.timestep
+    assert abs(contact.time - t_star) <= 1e-9 * dt
+    assert contact.bodies == ("left", "right") and contact.status_at_start == "separate"
+    np.testing.assert_allclose(contact.normal, [1, 0, 0], atol=1e-7)
+    np.testing.assert_allclose(contact.point[1:], 0.0, atol=1e-7)
+    assert seen == [contact]
+    # the step after starts overlapping
+    nxt = monitor.step()
+    assert nxt.fraction == 0.0 and nxt.status_at_start == "overlapping" and nxt.point is None
+
+
+def test_spinning_ellipsoids_agree_with_the_core():
+    m, d = _throw(0.02, speed=5.0)
+    d.qvel[3:6] = [0, 0, 40.0]
+    d.qvel[9:12] = [30.0, 0, 10.0]
+    es = fit_model(m)
+    monitor = CCDMonitor(m, d, es)
+    for _ in range(40):
+        s0 = capture(d)
+        mujoco.mj_step(m, d)
+        s1 = capture(d)
+        found = monitor.check(s0, s1)
+        mo = motions_between(m, es, s0, s1, "rigid")
+        ref = mjccd.first_contact(mjccd.Ellipsoid(es.radii[0]), mo[0], mjccd.Ellipsoid(es.radii[1]), mo[1])
+        if ref is None:
+            assert found is None
+            continue
+        assert found is not None and abs(found.fraction - ref.time) <= 1e-9
+        if ref.point is not None:
+            np.testing.assert_allclose(found.point, ref.point, atol=1e-9)
+            break
+    else:
+        pytest.fail("no contact in 40 steps")
+
+
+def test_check_accepts_qpos_and_counts_from_state_t0():
+    m, d = _throw(0.0101)
+    es = fit_model(m)
+    monitor = CCDMonitor(m, d, es)
+    q0 = d.qpos.copy()
+    q1 = q0.copy()
+    q1[0] += 7.0 * 0.02
+    q1[7] -= 7.0 * 0.02
+    contact = monitor.check(q0, q1)  # one "step" of 0.02 s
+    assert contact is not None
+    assert contact.fraction == pytest.approx(0.0101 / 0.02, abs=1e-9)
+    assert contact.time == pytest.approx(contact.fraction * m.opt.timestep)
+
+
+def test_all_pairs_reports_every_colliding_pair():
+    xml = THROW.replace("</worldbody>", '<body name="third" pos="0 0.3 0"><freejoint/>'
+                        '<geom type="sphere" size="0.1"/></body></worldbody>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    es = fit_model(m)
+    monitor = CCDMonitor(m, d, es, all_pairs=True)
+    q1 = d.qpos.copy()
+    q1[0] += 0.8   # left sweeps through right
+    q1[15] -= 0.6  # third comes down onto the x axis
+    monitor.check(d.qpos.copy(), q1)
+    report = monitor.last_report
+    got = {c.bodies for c in report.contacts}
+    assert ("left", "right") in got and len(got) >= 2
+    assert (report.first.bodies, report.first.fraction) == (report.contacts[0].bodies, report.contacts[0].fraction)
+    assert all(a.fraction <= b.fraction for a, b in zip(report.contacts, report.contacts[1:]))
+
+
+def test_explicit_pairs_and_errors(arm):
+    model, es = arm
+    d = mujoco.MjData(model)
+    mon = CCDMonitor(model, d, es, pairs=[("hand", "post"), (1, "post")])
+    assert len(mon.pairs) == 2
+    with pytest.raises(ValueError, match=r"pairs\[0\]\[1\]: the model has no body named 'moon'"):
+        CCDMonitor(model, d, es, pairs=[("hand", "moon")])
+    with pytest.raises(ValueError, match=r"pairs\[0\]\[0\]: body 'world' has no ellipsoid"):
+        CCDMonitor(model, d, es, pairs=[("world", "post")])
+    with pytest.raises(ValueError, match=r"pairs\[0\]: a body cannot be paired with itself"):
+        CCDMonitor(model, d, es, pairs=[("post", "post")])
+    with pytest.raises(ValueError, match=r"pairs\[0\]: expected a \(body, body\) pair"):
+        CCDMonitor(model, d, es, pairs=["hand"])
+    with pytest.raises(ValueError, match="motion: expected one of rigid, affine, chain"):
+        CCDMonitor(model, d, es, motion="spline")
+    with pytest.raises(ValueError, match="ellipsoids: expected an EllipsoidSet"):
+        CCDMonitor(model, d, [1, 2, 3])
+    q = model.qpos0.copy()
+    q[9] = np.nan
+    with pytest.raises(ValueError, match=r"state_t1.qpos\[9\]: is NaN or infinite"):
+        mon.check(model.qpos0, q)
+    with pytest.raises(ValueError, match=r"state_t0: expected a qpos vector of length nq = 15, got shape \(3,\)"):
+        mon.check(np.zeros(3), q)
+    other = EllipsoidSet(bodies=["elbow_pad"], radii=[[1, 1, 1]], positions=[[0, 0, 0]],
+                         quaternions=[[1, 0, 0, 0]])
+    with pytest.raises(ValueError, match=r"ellipsoids.bodies\[0\]: the model has no body 'elbow_pad'"):
+        CCDMonitor(model, d, other)
+
+
+def test_kinematics_leaves_user_data_alone(arm):
+    model, es = arm
+    d = mujoco.MjData(model)
+    mujoco.mj_forward(model, d)
+    before = d.xpos.copy()
+    state = State(_random_qpos(model, np.random.default_rng(5)), d.mocap_pos, d.mocap_quat)
+    Kinematics(model).body_poses(state)
+    np.testing.assert_array_equal(d.xpos, before)

@@ -56,12 +56,24 @@ def _table(results):
     return "\n".join(lines)
 
 
+# Subcommands implemented by their own module's ``main(argv)``; imported only when used.
+DELEGATED = {
+    "fit": ("mjccd.fit", "fit bounding ellipsoids to a MuJoCo model's bodies"),
+    "import-bvh": ("mjccd.bvh", "convert a BVH motion-capture clip to an MJCF skeleton and qpos"),
+    "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
+}
+BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene",
+                "patches": "mjccd.patches.bench"}
+
+
+def _delegate(module_name, argv):
+    import importlib
+
+    return importlib.import_module(module_name).main(argv)
+
+
 def _cmd_bench(args):
-    if args.suite == "core":
-        from mjccd.bench.core import main as bench_main
-    else:
-        from mjccd.patches.bench import main as bench_main
-    return bench_main(args.rest)
+    return _delegate(BENCH_SUITES[args.suite], args.rest)
 
 
 def build_parser():
@@ -72,14 +84,27 @@ def build_parser():
     solve.add_argument("-o", "--output", help="write results here instead of stdout")
     solve.add_argument("--table", action="store_true", help="print a readable table instead of JSON")
     solve.set_defaults(func=_cmd_solve)
+    for name, (_, text) in DELEGATED.items():
+        sub.add_parser(name, help=text, add_help=False)  # listed here, parsed by its module
     bench = sub.add_parser("bench", help="measure speed and accuracy against peers")
-    bench.add_argument("suite", choices=["core", "patches"])
+    bench.add_argument("suite", choices=sorted(BENCH_SUITES))
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the suite (--help)")
     bench.set_defaults(func=_cmd_bench)
     return parser
 
 
 def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in DELEGATED:
+        command = argv[0]
+        try:
+            return _delegate(DELEGATED[command][0], argv[1:])
+        except KeyboardInterrupt:
+            print("mjccd: interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:  # one line, never a traceback
+            print(f"mjccd {command}: {type(exc).__name__}: {exc}", file=sys.stderr)
+            return 1
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)

@@ -92,11 +92,12 @@ def _qprod(q0, q1, a, b, k):
 
 
 @_jit
-def support_rigid(radii, q0, q1, T, den):
+def support_rigid(radii, q0, q1, T, den, scratch):
     """Fill T (3, 3, 5) and den (5,) so that ``Q(t)^-1 = T(t) / den(t)`` for a rigid motion.
 
     Scaled Bernstein form (coefficient k times C(4, k)).  With ``R = rot(q)/|q|^2``
     and q lerped, ``Q^-1 = R diag(r^2) R^T = rot diag(r^2) rot^T / |q|^4``.
+    ``scratch`` is a (4, 3, 3) work array.
     """
     for i in range(3):
         for j in range(3):
@@ -106,8 +107,8 @@ def support_rigid(radii, q0, q1, T, den):
         den[k] = 0.0
     # rot(q(t)) in scaled Bernstein form of degree 2: a product of two lerps
     # [a0, a1] [b0, b1] is [a0 b0, a0 b1 + a1 b0, a1 b1]
-    rot = np.empty((3, 3, 3))
-    g = np.empty(3)
+    rot = scratch[:3]
+    g = scratch[3, 0]
     for k in range(3):
         ww = _qprod(q0, q1, 0, 0, k)
         xx = _qprod(q0, q1, 1, 1, k)
@@ -192,8 +193,15 @@ def support_affine(radii, q0, q1, T, den):
 @_jit
 def _rotation(q):
     """Rotation matrix of a unit quaternion [w, x, y, z]."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
     R = np.empty((3, 3))
+    rotation_into(q, R)
+    return R
+
+
+@_jit
+def rotation_into(q, R):
+    """Write the rotation matrix of a unit quaternion [w, x, y, z] into R (3, 3)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
     R[0, 0] = w * w + x * x - y * y - z * z
     R[0, 1] = 2.0 * (x * y - w * z)
     R[0, 2] = 2.0 * (x * z + w * y)
@@ -203,7 +211,6 @@ def _rotation(q):
     R[2, 0] = 2.0 * (x * z - w * y)
     R[2, 1] = 2.0 * (y * z + w * x)
     R[2, 2] = w * w - x * x - y * y + z * z
-    return R
 
 
 # ---------------------------------------------------------------- separating-plane witness
@@ -355,26 +362,29 @@ def witness(n0, n1, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
 
 
 @_jit
-def witness_variants(n0, ca0, ca1, Ra0, Ra1, Ta, dena, cb0, cb1, Rb0, Rb1, Tb, denb, n1_out, work):
-    """Try a world normal n0 fixed, turning with A, and turning with B; the one that held goes to n1_out.
+def witness_variants(n0, ca0, ca1, Ra0, Ra1, Ta, dena, cb0, cb1, Rb0, Rb1, Tb, denb, n1_out, work, first):
+    """Try a world normal n0 held fixed (variant 1), turning with A (2) and turning with B (3).
 
-    ``R*0``/``R*1`` are the rotations of the two bodies at t = 0 and 1.
+    ``R*0``/``R*1`` are the rotations of the two bodies at t = 0 and 1; variant
+    ``first`` is tried first (the one that held last frame).  Returns the
+    variant that held (its normal at t = 1 in ``n1_out``), or 0.
     """
-    if witness(n0, n0, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
-        n1_out[:] = n0
-        return True
-    for body in range(2):
-        R0 = Ra0 if body == 0 else Rb0
-        R1 = Ra1 if body == 0 else Rb1
-        for i in range(3):  # n1 = R1 R0^T n0
-            acc = 0.0
-            for j in range(3):
-                loc = R0[0, j] * n0[0] + R0[1, j] * n0[1] + R0[2, j] * n0[2]
-                acc += R1[i, j] * loc
-            n1_out[i] = acc
+    for step in range(3):
+        v = (first - 1 + step) % 3 + 1
+        if v == 1:
+            n1_out[:] = n0
+        else:
+            R0 = Ra0 if v == 2 else Rb0
+            R1 = Ra1 if v == 2 else Rb1
+            for i in range(3):  # n1 = R1 R0^T n0
+                acc = 0.0
+                for j in range(3):
+                    loc = R0[0, j] * n0[0] + R0[1, j] * n0[1] + R0[2, j] * n0[2]
+                    acc += R1[i, j] * loc
+                n1_out[i] = acc
         if witness(n0, n1_out, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
-            return True
-    return False
+            return v
+    return 0
 
 
 # ---------------------------------------------------------------- Python layer

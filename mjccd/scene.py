@@ -49,6 +49,12 @@ def _ticks(typingctx):
     return types.int64(), codegen
 
 
+@numba.njit(cache=True, nogil=True)
+def read_ticks():
+    """The cycle counter, readable from Python (to calibrate :class:`RunResult` ticks)."""
+    return _ticks()
+
+
 # ---------------------------------------------------------------- kernels
 
 
@@ -93,9 +99,12 @@ def _rotate_back(R, v, out):
 
 
 @_jit
-def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache, cache_n, cache_ok, k,
+def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache, cache_n, cache_kind, k,
                  work, scratch):
-    """Filters of pair k = (i, j): returns (outcome code, sphere-entry time)."""
+    """Filters of pair k = (i, j): returns (outcome code, sphere-entry time).
+
+    ``cache_kind[k]``: 0 no cached plane, else the witness variant to try first.
+    """
     te = fl.sphere_entry(p0[i], p1[i], rmax[i], p0[j], p1[j], rmax[j])
     if te < 0.0:
         return SPHERE, te
@@ -107,13 +116,15 @@ def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_
         ca1[m] = p1[i, m] - o[m]
         cb0[m] = p0[j, m] - o[m]
         cb1[m] = p1[j, m] - o[m]
-    if use_cache and cache_ok[k]:
+    if use_cache and cache_kind[k] > 0:
         _rotate(R0[i], cache_n[k], n0)
-        if fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
-                               n1, work):
+        v = fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
+                                n1, work, cache_kind[k])
+        if v > 0:
             _rotate_back(R1[i], n1, cache_n[k])
+            cache_kind[k] = v
             return CACHED_PLANE, te
-    cache_ok[k] = False
+    cache_kind[k] = 0
     if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) <= 0:
         return OVERLAP_T0, 0.0
     if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) <= 0:
@@ -123,10 +134,11 @@ def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_
     if ok:
         for m in range(3):
             n0[m] = plane[m]
-        if fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
-                               n1, work):
+        v = fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
+                                n1, work, 1)
+        if v > 0:
             _rotate_back(R1[i], n1, cache_n[k])
-            cache_ok[k] = True
+            cache_kind[k] = v
             return NEW_PLANE, te
     ok1, plane1, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca1, q1[i]),
                                                   quadric_matrix(radii[j], cb1, q1[j]))
@@ -134,7 +146,7 @@ def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_
         for m in range(3):
             tmp[m] = plane1[m]
         _rotate_back(R1[i], tmp, cache_n[k])
-        cache_ok[k] = True
+        cache_kind[k] = 1
         if ok and n0[0] * tmp[0] + n0[1] * tmp[1] + n0[2] * tmp[2] > 0.0:
             if fl.witness(n0, tmp, ca0, ca1, T[i], den[i], cb0, cb1, T[j], den[j], work):
                 return NEW_PLANE, te
@@ -142,24 +154,42 @@ def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_
 
 
 @_jit
-def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_ok, all_pairs, timing,
-                outcome, entry, times, points, normals, ticks):
+def workspace(n, npairs):
+    """Scratch arrays of :func:`step_kernel`, allocated once per run."""
+    return (np.empty((n, 4)), np.empty(n), np.empty((n, 3, 3, 5)), np.empty((n, 5)), np.empty((n, 3, 3)),
+            np.empty((n, 3, 3)), np.empty(fl.WORK_SHAPE), np.empty((7, 3)), np.empty(npairs, dtype=np.int64),
+            np.zeros(N_COUNTERS, dtype=np.int64), np.empty((4, 3, 3)))
+
+
+@_jit
+def _sort_by_entry(cand, m, entry):
+    """Stable insertion sort of cand[:m] by sphere-entry time (m is small)."""
+    for a in range(1, m):
+        k = cand[a]
+        e = entry[k]
+        b = a - 1
+        while b >= 0 and entry[cand[b]] > e:
+            cand[b + 1] = cand[b]
+            b -= 1
+        cand[b + 1] = k
+
+
+@_jit
+def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, timing,
+                outcome, entry, times, points, normals, ticks, ws):
     """One frame over all pairs.  Fills the per-pair arrays; returns (best pair, counters, intervals, owners).
 
     ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
     contact of pair k (-1 when none found), ``entry[k]`` its sphere-entry
     time.  With ``all_pairs`` every pair not cleared by a filter is solved
     over [0, 1] and its intervals are returned (``owners`` gives the pair of
-    each row); otherwise only the frame's first contact is sought.
+    each row); otherwise only the frame's first contact is sought.  ``ws`` is
+    the scratch from :func:`workspace`.
     """
     n = radii.shape[0]
     npairs = pairs.shape[0]
-    q1 = q1_raw.copy()
-    rmax = np.empty(n)
-    T = np.empty((n, 3, 3, 5))
-    den = np.empty((n, 5))
-    R0 = np.empty((n, 3, 3))
-    R1 = np.empty((n, 3, 3))
+    q1, rmax, T, den, R0, R1, work, scratch, cand, counters, rot_scratch = ws
+    q1[:] = q1_raw
     for i in range(n):
         if q0[i, 0] * q1[i, 0] + q0[i, 1] * q1[i, 1] + q0[i, 2] * q1[i, 2] + q0[i, 3] * q1[i, 3] < 0.0:
             for m in range(4):
@@ -168,14 +198,11 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
         if affine:
             fl.support_affine(radii[i], q0[i], q1[i], T[i], den[i])
         else:
-            fl.support_rigid(radii[i], q0[i], q1[i], T[i], den[i])
-        R0[i] = fl._rotation(q0[i])
-        R1[i] = fl._rotation(q1[i])
-    work = np.empty(fl.WORK_SHAPE)
-    scratch = np.empty((7, 3))
-    counters = np.zeros(N_COUNTERS, dtype=np.int64)
+            fl.support_rigid(radii[i], q0[i], q1[i], T[i], den[i], rot_scratch)
+        fl.rotation_into(q0[i], R0[i])
+        fl.rotation_into(q1[i], R1[i])
+    counters[:] = 0
     counters[0] = npairs
-    cand = np.empty(npairs, dtype=np.int64)
     ncand = 0
     best = 2.0
     best_k = -1
@@ -187,7 +214,7 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
         j = pairs[k, 1]
         times[k] = -1.0
         code, te = _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache,
-                                cache_n, cache_ok, k, work, scratch)
+                                cache_n, cache_kind, k, work, scratch)
         outcome[k] = code
         entry[k] = te
         if code == OVERLAP_T0:
@@ -203,12 +230,13 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
             counters[1 + code] += 1
         if timing:
             ticks[k] = _ticks() - t_start
-    iv = np.empty((16, 2))
-    owner = np.empty(16, dtype=np.int64)
+    iv = np.empty((16 if all_pairs else 0, 2))
+    owner = np.empty(16 if all_pairs else 0, dtype=np.int64)
     niv = 0
-    order = np.argsort(entry[cand[:ncand]], kind="mergesort")
+    if ncand > 1:
+        _sort_by_entry(cand, ncand, entry)
     for idx in range(ncand):
-        k = cand[order[idx]]
+        k = cand[idx]
         if timing:
             t_start = _ticks()
         i = pairs[k, 0]
@@ -250,28 +278,34 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
                 niv += 1
         if timing:
             ticks[k] += _ticks() - t_start
-    return best_k, counters, iv[:niv], owner[:niv]
+    return best_k, counters.copy(), iv[:niv], owner[:niv]
 
 
 @_jit
-def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_ok, timing,
-               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks):
+def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_kind, timing,
+               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks):
     """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache."""
     npairs = pairs.shape[0]
     entry = np.empty(npairs)
     times = np.empty(npairs)
     points = np.zeros((npairs, 3))
     normals = np.zeros((npairs, 3))
+    t_start = 0
+    ws = workspace(radii.shape[0], npairs)
     for f in range(positions.shape[0] - 1):
+        if timing:
+            t_start = _ticks()
         k, c, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
-                                 use_cache, cache_n, cache_ok, False, timing, outcomes[f], entry, times, points,
-                                 normals, ticks[f])
+                                 use_cache, cache_n, cache_kind, False, timing, outcomes[f], entry, times, points,
+                                 normals, ticks[f], ws)
         counters[f] = c
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
         if k >= 0:
             best_point[f] = points[k]
             best_normal[f] = normals[k]
+        if timing:
+            frame_ticks[f] = _ticks() - t_start
 
 
 # ---------------------------------------------------------------- Python layer
@@ -335,7 +369,8 @@ class RunResult:
     pair index (-1), ``point``/``normal`` (F, 3) zero when none or at t = 0;
     ``counters`` (F, 8) in the order of :class:`FrameCounters`; ``outcomes``
     (F, P) the outcome code of every pair (see ``OUTCOME_NAMES``); ``ticks``
-    (F, P) CPU cycles per pair when timing was asked for.
+    (F, P) CPU cycles per pair and ``frame_ticks`` (F,) per frame when timing
+    was asked for (zero otherwise).
     """
 
     time: np.ndarray
@@ -345,6 +380,7 @@ class RunResult:
     counters: np.ndarray
     outcomes: np.ndarray
     ticks: np.ndarray
+    frame_ticks: np.ndarray
 
 
 def all_pairs(n):
@@ -406,7 +442,7 @@ class Scene:
     def reset_cache(self):
         """Forget every cached separating plane."""
         self._cache_n = np.zeros((len(self.pairs), 3))
-        self._cache_ok = np.zeros(len(self.pairs), dtype=np.bool_)
+        self._cache_kind = np.zeros(len(self.pairs), dtype=np.int8)
 
     def _poses(self, poses, field):
         p = _validate.pose_array(poses, field, len(self.radii))
@@ -434,7 +470,8 @@ class Scene:
         ticks = np.zeros(npairs, dtype=np.int64)
         best_k, counters, iv, owner = step_kernel(
             self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
-            self._cache_ok, bool(all_pairs), False, outcome, entry, times, points, normals, ticks)
+            self._cache_kind, bool(all_pairs), False, outcome, entry, times, points, normals, ticks,
+            workspace(len(self.radii), npairs))
         first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
         contacts = ()
         if all_pairs:
@@ -471,8 +508,8 @@ class Scene:
         npairs = len(self.pairs)
         out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
-                        np.zeros((nf, npairs), dtype=np.int64))
+                        np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
         run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.plane_cache,
-                   self._cache_n, self._cache_ok, bool(timing), out.time, out.pair, out.point, out.normal,
-                   out.counters, out.outcomes, out.ticks)
+                   self._cache_n, self._cache_kind, bool(timing), out.time, out.pair, out.point, out.normal,
+                   out.counters, out.outcomes, out.ticks, out.frame_ticks)
         return out

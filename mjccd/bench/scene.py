@@ -1,0 +1,487 @@
+"""``mjccd bench scene``: the frame pipeline on a boxing workload, the thesis' Table 3, and MuJoCo sampling.
+
+(a) Two synthetic 20-ellipsoid boxers (limb sizes of an adult, ball joints
+    driven by smooth random signals plus punches), 400 pairs per frame, rigid
+    interpolation between frames; the first contact of every frame is checked
+    against the exact solver run on all 400 pairs without filters.
+(b) Thesis Table 3: two 3x3x5 ellipsoids 8 apart spinning about random axes at
+    0.1 / 0.5 / 1 rad per frame for 10,000 frames, one batched call, with and
+    without the plane cache.
+(c) The boxing frames checked by sampling MuJoCo's ``mj_geomDistance`` at N + 1
+    times per frame with bisection (N = 10, 100), on the pairs whose moving
+    bounding spheres meet (the same broad phase mjccd uses).
+"""
+import argparse
+import math
+import os
+import platform
+import statistics
+import time
+
+import numba
+import numpy as np
+
+from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, Scene,
+                         exact_pair, pairs_between, read_ticks)
+
+# ---------------------------------------------------------------- boxing workload
+
+# name, parent, joint offset in parent frame, ellipsoid centre in own frame, radii (metres)
+_SKELETON = [
+    ("pelvis", -1, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.11, 0.16, 0.09)),
+    ("abdomen", 0, (0.0, 0.0, 0.09), (0.0, 0.0, 0.09), (0.10, 0.14, 0.09)),
+    ("belly", 1, (0.0, 0.0, 0.0), (0.04, 0.0, 0.06), (0.08, 0.11, 0.08)),
+    ("chest", 1, (0.0, 0.0, 0.18), (0.0, 0.0, 0.12), (0.11, 0.17, 0.13)),
+    ("neck", 3, (0.0, 0.0, 0.25), (0.0, 0.0, 0.05), (0.05, 0.05, 0.06)),
+    ("head", 4, (0.0, 0.0, 0.09), (0.01, 0.0, 0.10), (0.09, 0.075, 0.11)),
+]
+for _s, _side in ((1.0, "l"), (-1.0, "r")):
+    _SKELETON += [
+        (f"shoulder_{_side}", 3, (0.0, 0.06 * _s, 0.20), (0.0, 0.07 * _s, 0.0), (0.05, 0.08, 0.05)),
+        (f"upper_arm_{_side}", None, (0.0, 0.15 * _s, 0.0), (0.0, 0.0, -0.14), (0.05, 0.05, 0.16)),
+        (f"forearm_{_side}", None, (0.0, 0.0, -0.28), (0.0, 0.0, -0.13), (0.045, 0.045, 0.14)),
+        (f"fist_{_side}", None, (0.0, 0.0, -0.26), (0.0, 0.0, -0.05), (0.05, 0.045, 0.06)),
+        (f"thigh_{_side}", 0, (0.0, 0.09 * _s, -0.05), (0.0, 0.0, -0.21), (0.08, 0.08, 0.23)),
+        (f"shin_{_side}", None, (0.0, 0.0, -0.43), (0.0, 0.0, -0.21), (0.055, 0.055, 0.22)),
+        (f"foot_{_side}", None, (0.0, 0.0, -0.43), (0.06, 0.0, -0.04), (0.12, 0.05, 0.04)),
+    ]
+_SKELETON = [(n, (i - 1 if p is None else p), j, c, r) for i, (n, p, j, c, r) in enumerate(_SKELETON)]
+
+
+def _axis_angle(v):
+    """Rotation matrices (F, 3, 3) of rotation vectors v (F, 3)."""
+    theta = np.linalg.norm(v, axis=1)
+    k = v / np.maximum(theta, 1e-300)[:, None]
+    K = np.zeros((len(v), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
+    s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * K @ K
+
+
+def _quaternions(R):
+    """Unit quaternions [w, x, y, z] (F, 4) of rotation matrices (F, 3, 3)."""
+    w = np.sqrt(np.maximum(0.0, 1.0 + R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2])) / 2
+    x = np.sqrt(np.maximum(0.0, 1.0 + R[:, 0, 0] - R[:, 1, 1] - R[:, 2, 2])) / 2
+    y = np.sqrt(np.maximum(0.0, 1.0 - R[:, 0, 0] + R[:, 1, 1] - R[:, 2, 2])) / 2
+    z = np.sqrt(np.maximum(0.0, 1.0 - R[:, 0, 0] - R[:, 1, 1] + R[:, 2, 2])) / 2
+    x = np.copysign(x, R[:, 2, 1] - R[:, 1, 2])
+    y = np.copysign(y, R[:, 0, 2] - R[:, 2, 0])
+    z = np.copysign(z, R[:, 1, 0] - R[:, 0, 1])
+    q = np.stack([w, x, y, z], axis=1)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def _smooth(rng, ts, amplitude, fmin=0.2, fmax=1.2, n=3):
+    """A sum of n random sinusoids: smooth joint noise (F,)."""
+    out = np.zeros_like(ts)
+    for _ in range(n):
+        out += amplitude / n * np.sin(2 * np.pi * rng.uniform(fmin, fmax) * ts + rng.uniform(0, 2 * np.pi))
+    return out
+
+
+def _punches(rng, ts, rate):
+    """Punch profile in [0, 1] per frame: raised-cosine bumps of 0.3-0.5 s at random times."""
+    out = np.zeros_like(ts)
+    t = rng.exponential(1.0 / rate)
+    while t < ts[-1]:
+        dur = rng.uniform(0.3, 0.5)
+        inside = (ts >= t) & (ts <= t + dur)
+        out[inside] = np.maximum(out[inside], 0.5 - 0.5 * np.cos(2 * np.pi * (ts[inside] - t) / dur))
+        t += dur + rng.exponential(1.0 / rate)
+    return out
+
+
+def _boxer(rng, ts, root, facing):
+    """Poses (F, 20, 7) and radii (20, 3) of one boxer whose pelvis follows ``root`` (F, 3)."""
+    nf = len(ts)
+    nb = len(_SKELETON)
+    rot = [None] * nb
+    pos = [None] * nb
+    poses = np.empty((nf, nb, 7))
+    yaw = facing + _smooth(rng, ts, 0.25)
+    for b, (name, parent, joint, centre, radii) in enumerate(_SKELETON):
+        v = np.zeros((nf, 3))
+        if parent < 0:
+            v[:, 2] = yaw
+            v[:, 1] = _smooth(rng, ts, 0.08)
+            Rj = _axis_angle(v)
+            Rw = Rj
+            pw = root.copy()
+        else:
+            if name.startswith("upper_arm"):
+                side = 1.0 if name.endswith("_l") else -1.0
+                punch = _punches(rng, ts, 0.9)
+                v[:, 1] = -(0.9 + 0.6 * punch + _smooth(rng, ts, 0.25))   # flexion: swing forward
+                v[:, 0] = side * (0.25 + _smooth(rng, ts, 0.15)) - side * 0.2 * punch
+                v[:, 2] = _smooth(rng, ts, 0.2)
+                _punch_memory[name] = punch
+            elif name.startswith("forearm"):
+                punch = _punch_memory["upper_arm" + name[-2:]]
+                v[:, 1] = -(1.9 - 1.7 * punch + _smooth(rng, ts, 0.2))       # elbow flexion
+            elif name.startswith("thigh"):
+                v[:, 1] = -0.15 + _smooth(rng, ts, 0.2)
+                v[:, 0] = _smooth(rng, ts, 0.08)
+            elif name.startswith("shin"):
+                v[:, 1] = 0.3 + _smooth(rng, ts, 0.2)
+            elif name in ("abdomen", "chest"):
+                v[:, 1] = 0.1 + _smooth(rng, ts, 0.12)
+                v[:, 2] = _smooth(rng, ts, 0.3)
+            else:
+                v[:] = np.stack([_smooth(rng, ts, 0.1) for _ in range(3)], axis=1)
+            Rj = _axis_angle(v)
+            Rp, pp = rot[parent], pos[parent]
+            Rw = Rp @ Rj
+            pw = pp + np.einsum("fij,j->fi", Rp, np.asarray(joint))
+        rot[b], pos[b] = Rw, pw
+        poses[:, b, :3] = pw + np.einsum("fij,j->fi", Rw, np.asarray(centre))
+        poses[:, b, 3:] = _quaternions(Rw)
+    return poses, np.array([s[4] for s in _SKELETON])
+
+
+_punch_memory = {}
+
+
+def boxing_workload(n_frames=1000, *, seed=0, fps=60.0):
+    """Two 20-ellipsoid boxers facing each other: poses (n_frames + 1, 40, 7), radii (40, 3), pairs (400, 2)."""
+    rng = np.random.default_rng(seed)
+    ts = np.arange(n_frames + 1) / fps
+    gap = 0.80 + _smooth(rng, ts, 0.12, 0.1, 0.5)
+    root_a = np.stack([-gap / 2 + _smooth(rng, ts, 0.03), _smooth(rng, ts, 0.06), 1.0 + _smooth(rng, ts, 0.02)], 1)
+    root_b = np.stack([gap / 2 + _smooth(rng, ts, 0.03), _smooth(rng, ts, 0.06), 1.0 + _smooth(rng, ts, 0.02)], 1)
+    pa, ra = _boxer(rng, ts, root_a, 0.0)
+    pb, rb = _boxer(rng, ts, root_b, np.pi)
+    poses = np.concatenate([pa, pb], axis=1)
+    radii = np.concatenate([ra, rb])
+    return poses, radii, pairs_between(range(20), range(20, 40))
+
+
+# ---------------------------------------------------------------- references
+
+
+@numba.njit(cache=True, nogil=True)
+def _unfiltered_first(radii, positions, quats, pairs, out_time, out_pair):
+    """First contact of every frame with the exact solver on every pair, no filters, t_max = 1."""
+    for f in range(positions.shape[0] - 1):
+        best = 2.0
+        best_k = -1
+        for k in range(pairs.shape[0]):
+            i = pairs[k, 0]
+            j = pairs[k, 1]
+            qa1 = quats[f + 1, i].copy()
+            qb1 = quats[f + 1, j].copy()
+            if (quats[f, i] * qa1).sum() < 0.0:
+                qa1 = -qa1
+            if (quats[f, j] * qb1).sum() < 0.0:
+                qb1 = -qb1
+            s0, iv, _, _ = exact_pair(False, radii[i], positions[f, i], quats[f, i], positions[f + 1, i], qa1,
+                                      radii[j], positions[f, j], quats[f, j], positions[f + 1, j], qb1, 1.0, True)
+            if iv.shape[0] > 0:
+                t = iv[0, 0] if s0 == 1 else 0.0
+                if t < best:
+                    best, best_k = t, k
+        out_time[f] = best if best_k >= 0 else -1.0
+        out_pair[f] = best_k
+
+
+def _tick_seconds():
+    """Seconds per cycle-counter tick, calibrated against perf_counter."""
+    read_ticks()
+    c0, t0 = read_ticks(), time.perf_counter()
+    time.sleep(0.2)
+    c1, t1 = read_ticks(), time.perf_counter()
+    return (t1 - t0) / (c1 - c0)
+
+
+# ---------------------------------------------------------------- (a) boxing
+
+
+def bench_boxing(n_frames, seed, repeats, verify):
+    poses, radii, pairs = boxing_workload(n_frames, seed=seed)
+    scene = Scene(radii, pairs=pairs)
+    # warm up (compile), then timed runs from a cold cache each time
+    scene.run(poses[:3])
+    scene.step(poses[0], poses[1])
+    run_s = []
+    for _ in range(repeats):
+        scene.reset_cache()
+        t0 = time.perf_counter()
+        res = scene.run(poses)
+        run_s.append((time.perf_counter() - t0) / n_frames)
+    step_s = []
+    firsts = []
+    scene.reset_cache()
+    for f in range(n_frames):
+        t0 = time.perf_counter()
+        r = scene.step(poses[f], poses[f + 1])
+        step_s.append(time.perf_counter() - t0)
+        firsts.append(r.first)
+    scene.reset_cache()
+    timed = scene.run(poses, timing=True)
+    sec = _tick_seconds()
+    out = {"frames": n_frames, "pairs": len(pairs), "run_ms": 1e3 * statistics.median(run_s),
+           "step_ms_median": 1e3 * statistics.median(step_s), "step_ms_mean": 1e3 * statistics.fmean(step_s),
+           "result": res, "timed": timed, "sec_per_tick": sec, "poses": poses, "radii": radii, "pairs_arr": pairs}
+    same = all((a is None and t < 0) or (a is not None and abs(a.time - t) <= 1e-12 and a.pair == k)
+               for a, t, k in zip(firsts, res.time, res.pair))
+    out["step_equals_run"] = same
+    if verify:
+        ref_t = np.empty(n_frames)
+        ref_k = np.empty(n_frames, dtype=np.int64)
+        p = np.ascontiguousarray(poses[:, :, :3])
+        q = np.ascontiguousarray(poses[:, :, 3:])
+        t0 = time.perf_counter()
+        _unfiltered_first(radii, p, q, pairs, ref_t, ref_k)
+        out["unfiltered_ms"] = 1e3 * (time.perf_counter() - t0) / n_frames
+        hit = ref_t >= 0
+        out["ref_contact_frames"] = int(hit.sum())
+        out["mismatch_frames"] = int(np.sum((hit != (res.time >= 0))
+                                            | (hit & (np.abs(ref_t - res.time) > 1e-9))))
+        out["ref_time"] = ref_t
+    return out
+
+
+def boxing_table(b):
+    """Table-5-style rows from the timed run."""
+    timed = b["timed"]
+    sec = b["sec_per_tick"]
+    oc = timed.outcomes.ravel()
+    us = timed.ticks.ravel() * sec * 1e6
+    colliding = (oc == OVERLAP_T0) | (oc == EXACT_HIT)
+    free = ~colliding & (oc != PRUNED)
+    close = (oc == EXACT_FREE) | (oc == EXACT_HIT)
+    n = len(oc)
+    rows = {
+        "ms per frame (batched run, median of repeats)": f"{b['run_ms']:.3f}",
+        "ms per frame (Scene.step, median over frames)": f"{b['step_ms_median']:.3f}",
+        "ms per frame (Scene.step, mean)": f"{b['step_ms_mean']:.3f}",
+        "frames per second (batched run)": f"{1e3 / b['run_ms']:.0f}",
+        "µs per pair, all pairs (mean)": f"{us.mean():.3f}",
+        "µs per pair, collision-free pairs (mean)": f"{us[free].mean():.3f}",
+        "µs per pair, colliding pairs (mean)": f"{us[colliding].mean():.2f}" if colliding.any() else "–",
+        "µs per pair, worst case": f"{us.max():.1f}",
+        "µs per pair, close pairs solved exactly (mean)": f"{us[close].mean():.1f}" if close.any() else "–",
+    }
+    pct = {
+        "culled by moving spheres": np.mean(oc == SPHERE),
+        "free by cached plane": np.mean(oc == CACHED_PLANE),
+        "free by new plane": np.mean(oc == NEW_PLANE),
+        "overlapping at t = 0": np.mean(oc == OVERLAP_T0),
+        "solved exactly": np.mean(close),
+        "of which colliding": np.mean(oc == EXACT_HIT),
+        "skipped by the earliest-contact bound": np.mean(oc == PRUNED),
+    }
+    counts = {k: int(round(v * n)) for k, v in pct.items()}
+    return rows, pct, counts
+
+
+# ---------------------------------------------------------------- (b) thesis Table 3
+
+
+def table3_poses(omega, n_frames, seed):
+    """Two 3x3x5 ellipsoids 8 apart, each spinning about its own random axis by omega per frame."""
+    rng = np.random.default_rng(seed)
+    poses = np.zeros((n_frames + 1, 2, 7))
+    poses[:, 1, 0] = 8.0
+    for b in range(2):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        q0 = rng.normal(size=4)
+        q0 /= np.linalg.norm(q0)
+        ang = omega * np.arange(n_frames + 1)
+        dq = np.concatenate([np.cos(ang / 2)[:, None], np.sin(ang / 2)[:, None] * axis], axis=1)
+        w1, v1 = dq[:, 0], dq[:, 1:]
+        w2, v2 = q0[0], q0[1:]
+        poses[:, b, 3] = w1 * w2 - v1 @ v2
+        poses[:, b, 4:] = w1[:, None] * v2 + w2 * v1 + np.cross(v1, v2)
+    return poses
+
+
+def bench_table3(n_frames, seed, repeats):
+    rows = []
+    radii = np.array([[3.0, 3.0, 5.0], [3.0, 3.0, 5.0]])
+    for omega in (0.1, 0.5, 1.0):
+        poses = table3_poses(omega, n_frames, seed)
+        row = {"omega": omega}
+        for cached in (True, False):
+            scene = Scene(radii, pairs=[[0, 1]], plane_cache=cached)
+            scene.run(poses[:3])
+            runs = []
+            for _ in range(repeats):
+                scene.reset_cache()
+                t0 = time.perf_counter()
+                res = scene.run(poses)
+                runs.append((time.perf_counter() - t0) / n_frames)
+            key = "cache" if cached else "nocache"
+            row[f"us_{key}"] = 1e6 * statistics.median(runs)
+            if cached:
+                oc = res.outcomes[:, 0]
+                row["collisions"] = int(np.sum(res.time >= 0))
+                row["separations"] = n_frames - row["collisions"]
+                row["by_cached_plane"] = int(np.sum(oc == CACHED_PLANE))
+                row["by_new_plane"] = int(np.sum(oc == NEW_PLANE))
+                row["overlap_t0"] = int(np.sum(oc == OVERLAP_T0))
+                row["exact"] = int(np.sum((oc == EXACT_FREE) | (oc == EXACT_HIT)))
+                scene.reset_cache()
+                timed = scene.run(poses, timing=True)
+                sec = _tick_seconds()
+                held = timed.outcomes[:, 0] == CACHED_PLANE
+                row["us_cached_frames"] = 1e6 * sec * float(np.mean(timed.frame_ticks[held])) if held.any() else None
+                row["times"] = res.time
+            else:
+                row["same_answers"] = bool(np.array_equal(res.time, row["times"]))
+        rows.append(row)
+    return rows
+
+
+# ---------------------------------------------------------------- (c) MuJoCo sampling
+
+
+def _mjcf(radii):
+    bodies = "\n".join(
+        f'    <body name="e{i}" mocap="true"><geom name="e{i}" type="ellipsoid" size="{r[0]!r} {r[1]!r} {r[2]!r}"/></body>'
+        for i, r in enumerate(radii))
+    return f"""<mujoco model="mjccd-boxers">
+  <option ccd_tolerance="1e-12" ccd_iterations="200"/>
+  <worldbody>
+{bodies}
+  </worldbody>
+</mujoco>"""
+
+
+def bench_mujoco(b, samples, tol=1e-9):
+    """First contact per frame by mj_geomDistance sampling + bisection, on sphere-passing pairs."""
+    import mujoco
+
+    poses, radii, pairs = b["poses"], b["radii"], b["pairs_arr"]
+    model = mujoco.MjModel.from_xml_string(_mjcf(radii))
+    data = mujoco.MjData(model)
+    distmax = 4.0 * float(radii.max())
+    oc = b["result"].outcomes
+    n_frames = len(oc)
+    out = {}
+    for n in samples:
+        per_frame = []
+        times = np.full(n_frames, -1.0)
+        for f in range(n_frames):
+            p0, p1 = poses[f, :, :3], poses[f + 1, :, :3]
+            q0, q1 = poses[f, :, 3:], poses[f + 1, :, 3:].copy()
+            q1[(q0 * q1).sum(1) < 0] *= -1
+            t_start = time.perf_counter()
+            cand = [k for k in range(len(pairs)) if oc[f, k] != SPHERE]
+
+            def place(t):
+                q = (1 - t) * q0 + t * q1
+                data.mocap_pos[:] = (1 - t) * p0 + t * p1
+                data.mocap_quat[:] = q / np.linalg.norm(q, axis=1, keepdims=True)
+                mujoco.mj_kinematics(model, data)
+
+            best = -1.0
+            for s in range(n + 1):
+                t = s / n
+                place(t)
+                hit = [k for k in cand if mujoco.mj_geomDistance(model, data, int(pairs[k, 0]), int(pairs[k, 1]),
+                                                                 distmax, None) <= 0.0]
+                if hit:
+                    if s == 0:
+                        best = 0.0
+                        break
+                    lo, hi = (s - 1) / n, t
+                    while hi - lo > tol:
+                        mid = 0.5 * (lo + hi)
+                        place(mid)
+                        if any(mujoco.mj_geomDistance(model, data, int(pairs[k, 0]), int(pairs[k, 1]), distmax,
+                                                      None) <= 0.0 for k in cand):
+                            hi = mid
+                        else:
+                            lo = mid
+                    best = hi
+                    break
+            per_frame.append(time.perf_counter() - t_start)
+            times[f] = best
+        ref = b.get("ref_time", b["result"].time)
+        hit = ref >= 0
+        out[n] = {"ms": 1e3 * statistics.median(per_frame), "ms_mean": 1e3 * statistics.fmean(per_frame),
+                  "missed": int(np.sum(hit & (times < 0))), "false": int(np.sum(~hit & (times >= 0))),
+                  "late": int(np.sum(hit & (times >= 0) & (times - ref > 1e-6)))}
+    return out
+
+
+# ---------------------------------------------------------------- report
+
+
+def markdown(b, table3, mj, command):
+    rows, pct, counts = boxing_table(b)
+    lines = ["## Frame pipeline (`mjccd bench scene`)", "",
+             f"Command: `{command}`  ",
+             f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+             f"numpy {np.__version__}, numba {numba.__version__}", "",
+             f"### (a) Two boxers, {b['pairs']} pairs, {b['frames']} frames, rigid motion (thesis Table 5 set-up 1)", "",
+             "| measure | mjccd | thesis Table 5 (2008 CPU) |", "| --- | ---: | ---: |"]
+    thesis = {"ms per frame (batched run, median of repeats)": "1.33",
+              "µs per pair, all pairs (mean)": "2.8", "µs per pair, collision-free pairs (mean)": "2.5",
+              "µs per pair, colliding pairs (mean)": "17.8", "µs per pair, worst case": "73.9",
+              "µs per pair, close pairs solved exactly (mean)": "55.2"}
+    for k, v in rows.items():
+        lines.append(f"| {k} | {v} | {thesis.get(k, '')} |")
+    lines += ["", "| pairs decided by | share | count |", "| --- | ---: | ---: |"]
+    for k, v in pct.items():
+        lines.append(f"| {k} | {100 * v:.3f}% | {counts[k]} |")
+    if "mismatch_frames" in b:
+        lines += ["", f"First contact of every frame against the exact solver on all {b['pairs']} pairs without "
+                      f"filters ({b['unfiltered_ms']:.1f} ms per frame): {b['ref_contact_frames']} frames with "
+                      f"contact, {b['mismatch_frames']} frames differ (tolerance 1e-9). "
+                      f"`Scene.step` and the batched run agree: {b['step_equals_run']}."]
+    lines += ["", f"### (b) Thesis Table 3 set-up: two 3×3×5 ellipsoids 8 apart, "
+                  f"{table3[0]['collisions'] + table3[0]['separations']} frames, CCD over each frame", "",
+              "| angular speed (rad/frame) | 0.1 | 0.5 | 1.0 |", "| --- | ---: | ---: | ---: |"]
+    for label, key, fmt in (("frames with a contact", "collisions", "{}"), ("frames free", "separations", "{}"),
+                            ("free by the cached plane", "by_cached_plane", "{}"),
+                            ("free by a new plane", "by_new_plane", "{}"),
+                            ("overlapping at frame start", "overlap_t0", "{}"), ("solved exactly", "exact", "{}"),
+                            ("µs per frame, whole run, with cache", "us_cache", "{:.2f}"),
+                            ("µs per frame, whole run, no cache", "us_nocache", "{:.2f}"),
+                            ("µs per frame when the cached plane holds", "us_cached_frames", "{:.3f}")):
+        lines.append(f"| {label} | " + " | ".join("–" if r[key] is None else fmt.format(r[key]) for r in table3) + " |")
+    lines.append("| same answers with and without cache | " + " | ".join(str(r["same_answers"]) for r in table3) + " |")
+    lines += ["", "Thesis (static test per frame, 2008 CPU): separations decided by the cached plane 8,310 / 6,029 / "
+                  "4,502 of 8,798 / 8,446 / 8,378; 2.47 / 3.99 / 4.98 µs per frame with planes, 7.9 µs without.", ""]
+    if mj:
+        lines += [f"### (c) MuJoCo `mj_geomDistance` sampling on the same boxing frames", "",
+                  "Sampling at t = k/N plus bisection to 1e-9, on the pairs whose moving spheres meet. "
+                  "Missed: frames with an exact contact that sampling does not see; late: found more than 1e-6 "
+                  "after the exact time.", "",
+                  "| method | ms per frame (median) | ms per frame (mean) | ratio to mjccd (median) | missed | late | "
+                  "false |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+                  f"| mjccd Scene.step (exact) | {b['step_ms_median']:.3f} | {b['step_ms_mean']:.3f} | 1 | 0 | 0 | 0 |"]
+        for n, r in mj.items():
+            lines.append(f"| MuJoCo, N = {n} | {r['ms']:.3f} | {r['ms_mean']:.3f} | "
+                         f"{r['ms'] / b['step_ms_median']:.1f}× | {r['missed']} | {r['late']} | {r['false']} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    """Run the benchmark; print the markdown tables (and write them with --markdown)."""
+    parser = argparse.ArgumentParser(prog="mjccd bench scene", description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=1000, help="boxing frames (default 1000)")
+    parser.add_argument("--table3-frames", type=int, default=10000, help="Table 3 frames (default 10000)")
+    parser.add_argument("--repeats", type=int, default=5, help="timed repeats of each batched run (default 5)")
+    parser.add_argument("--samples", type=int, nargs="*", default=[10, 100], help="MuJoCo samples per frame")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-verify", action="store_true", help="skip the unfiltered exact reference")
+    parser.add_argument("--no-mujoco", action="store_true", help="skip MuJoCo sampling")
+    parser.add_argument("--markdown", metavar="FILE", help="write the tables to this markdown file")
+    args = parser.parse_args(argv)
+    if args.frames < 2 or args.table3_frames < 2 or args.repeats < 1 or any(n < 1 for n in args.samples):
+        parser.error("--frames and --table3-frames must be >= 2, --repeats and --samples >= 1")
+    b = bench_boxing(args.frames, args.seed, args.repeats, not args.no_verify)
+    t3 = bench_table3(args.table3_frames, args.seed, args.repeats)
+    mj = {} if args.no_mujoco else bench_mujoco(b, args.samples)
+    command = "mjccd bench scene" + ("" if not argv else " " + " ".join(argv))
+    text = markdown(b, t3, mj, command)
+    print(text)
+    if args.markdown:
+        with open(args.markdown, "w") as fh:
+            fh.write(text)
+        print(f"written to {args.markdown}")
+    return 0

@@ -1,0 +1,154 @@
+"""Scene against the pairwise exact solver: same first contact, same colliding set, cache on or off."""
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd.scene import Scene, non_adjacent_pairs, pairs_between
+
+N = 6
+
+
+def random_frames(seed, n_frames):
+    """A smooth pose sequence (n_frames + 1, N, 7) of ellipsoids crowded into a small box."""
+    r = np.random.default_rng(seed)
+    radii = r.uniform(0.15, 0.45, (N, 3))
+    pos = r.uniform(-0.7, 0.7, (N, 3))
+    vel = r.normal(size=(N, 3)) * 0.25
+    q = r.normal(size=(N, 4))
+    w = r.normal(size=(N, 3)) * 0.4
+    poses = np.empty((n_frames + 1, N, 7))
+    for f in range(n_frames + 1):
+        q = q / np.linalg.norm(q, axis=1, keepdims=True)
+        poses[f, :, :3], poses[f, :, 3:] = pos, q
+        pos = pos + vel
+        vel = np.where(np.abs(pos) > 0.8, -vel, vel)
+        dq = np.concatenate([np.ones((N, 1)), 0.5 * w], axis=1)
+        q = np.stack([_qmul(a, b) for a, b in zip(dq, q)])
+    return radii, poses
+
+
+def _qmul(a, b):
+    w1, v1, w2, v2 = a[0], a[1:], b[0], b[1:]
+    return np.concatenate([[w1 * w2 - v1 @ v2], w1 * v2 + w2 * v1 + np.cross(v1, v2)])
+
+
+def pairwise(radii, pairs, p0, p1, motion):
+    """First contact and intervals of every pair by the public pairwise API."""
+    cls = mjccd.Rigid if motion == "rigid" else mjccd.Affine
+    out = {}
+    for k, (i, j) in enumerate(pairs):
+        args = (mjccd.Ellipsoid(radii[i]), cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
+                mjccd.Ellipsoid(radii[j]), cls(p0[j, :3], p0[j, 3:], p1[j, :3], p1[j, 3:]))
+        c = mjccd.first_contact(*args)
+        if c is not None:
+            out[k] = (c, mjccd.collision_intervals(*args))
+    return out
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+def test_scene_equals_pairwise_solver(motion):
+    radii, poses = random_frames(3 if motion == "rigid" else 4, 6)
+    cached = Scene(radii, motion=motion)
+    plain = Scene(radii, motion=motion, plane_cache=False)
+    every = Scene(radii, motion=motion)
+    hits = 0
+    for f in range(len(poses) - 1):
+        ref = pairwise(radii, cached.pairs, poses[f], poses[f + 1], motion)
+        a = cached.step(poses[f], poses[f + 1])
+        b = plain.step(poses[f], poses[f + 1])
+        full = every.step(poses[f], poses[f + 1], all_pairs=True)
+        for res in (a, b, full):
+            if not ref:
+                assert res.first is None
+                continue
+            k_ref = min(ref, key=lambda k: (ref[k][0].time, k))
+            assert res.first.time == pytest.approx(ref[k_ref][0].time, abs=1e-9)
+            assert res.first.pair == k_ref
+        assert a.first == b.first or a.first.time == b.first.time
+        assert {c.pair for c in full.contacts} == set(ref)
+        for c in full.contacts:
+            contact, intervals = ref[c.pair]
+            assert c.time == pytest.approx(contact.time, abs=1e-9)
+            assert np.allclose(c.intervals, intervals, atol=1e-9)
+            if contact.point is not None:
+                assert np.allclose(c.point, contact.point, atol=1e-6)
+                assert np.allclose(c.normal, contact.normal, atol=1e-6)
+        assert full.counters.colliding == len(ref)
+        hits += len(ref)
+    assert hits > 0
+    assert cached.step(poses[0], poses[1]).counters.pairs == N * (N - 1) // 2
+
+
+def test_run_equals_steps_and_cache_changes_nothing():
+    radii, poses = random_frames(8, 12)
+    steps = Scene(radii)
+    firsts = [steps.step(poses[f], poses[f + 1]).first for f in range(12)]
+    for cache in (True, False):
+        run = Scene(radii, plane_cache=cache).run(poses)
+        for f, first in enumerate(firsts):
+            if first is None:
+                assert run.time[f] == -1.0 and run.pair[f] == -1
+            else:
+                assert run.time[f] == first.time and run.pair[f] == first.pair
+    assert Scene(radii).run(poses).counters[:, 2].sum() > 0  # the cache was used
+
+
+def test_earliest_contact_bound_prunes_later_pairs():
+    """Pair 0 hits at t = 0.25, pair 1 only later: pair 1 is not solved, its sphere entry is too late."""
+    radii = np.full((4, 3), 0.5)
+    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [2, 0, 0, 1, 0, 0, 0],
+                   [10, 0, 0, 1, 0, 0, 0], [14, 0, 0, 1, 0, 0, 0]], float)
+    p1 = p0.copy()
+    p1[1, 0] = -2.0          # closes 4 in the frame: touches when the gap 1 is gone, t = 0.25
+    p1[3, 0] = 10.5          # centres 4 apart close by 3.5: touch (distance 1) at t = 6/7
+    scene = Scene(radii, pairs=[[0, 1], [2, 3]])
+    res = scene.step(p0, p1)
+    assert res.first.pair == 0 and res.first.time == pytest.approx(0.25, abs=1e-9)
+    assert res.counters.pruned == 1 and res.counters.solved_exactly == 1
+    full = scene.step(p0, p1, all_pairs=True)
+    assert [c.pair for c in full.contacts] == [0, 1]
+    assert full.contacts[1].time == pytest.approx(6 / 7, abs=1e-9)
+    assert np.allclose(res.first.point, [0.5 - 0.0, 0, 0], atol=1e-9)
+    assert np.allclose(res.first.normal, [1, 0, 0], atol=1e-9)
+
+
+def test_overlap_at_start_is_time_zero():
+    radii = np.full((2, 3), 0.5)
+    p = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0]], float)
+    res = Scene(radii).step(p, p)
+    assert res.first.time == 0.0 and res.first.point is None
+    assert res.counters.overlapping_t0 == 1
+
+
+def test_pair_helpers():
+    assert pairs_between([0, 1], [2, 3, 4]).tolist() == [[0, 2], [0, 3], [0, 4], [1, 2], [1, 3], [1, 4]]
+    assert non_adjacent_pairs(4, [[0, 1], [2, 1], [2, 3]]).tolist() == [[0, 2], [0, 3], [1, 3]]
+
+
+def test_bad_input():
+    radii = np.full((3, 3), 0.5)
+    good = np.zeros((3, 7))
+    good[:, 3] = 1.0
+    scene = Scene(radii)
+    with pytest.raises(ValueError, match=r"radii\[1\]: radii must be positive"):
+        Scene([[1, 1, 1], [1, 0, 1]])
+    with pytest.raises(ValueError, match=r"pairs\[1\]: index out of range for 3 ellipsoids, got \[0, 3\]"):
+        Scene(radii, pairs=[[0, 1], [0, 3]])
+    with pytest.raises(ValueError, match=r"pairs\[0\]: an ellipsoid cannot be paired with itself"):
+        Scene(radii, pairs=[[2, 2]])
+    with pytest.raises(ValueError, match="pairs: expected shape Px2, got \\(3,\\)"):
+        Scene(radii, pairs=[0, 1, 2])
+    with pytest.raises(ValueError, match="motion: expected 'rigid' or 'affine', got 'chain'"):
+        Scene(radii, motion="chain")
+    with pytest.raises(ValueError, match=r"poses_t0: expected shape 3x7, got \(3, 6\)"):
+        scene.step(good[:, :6], good)
+    bad = good.copy()
+    bad[1, 0] = np.nan
+    with pytest.raises(ValueError, match="poses_t1: contains NaN or infinity"):
+        scene.step(good, bad)
+    bad = good.copy()
+    bad[2, 3:] = 0.0
+    with pytest.raises(ValueError, match=r"poses_t1\[2\]: zero quaternion"):
+        scene.step(good, bad)
+    with pytest.raises(ValueError, match=r"poses\[1\]\[2\]: zero quaternion"):
+        scene.run(np.stack([good, bad]))

@@ -608,7 +608,7 @@ def model_xml(characters, *, model_name="bvh", floor=True, extra_worldbody=()):
              '      <geom contype="0" conaffinity="0" group="1" density="1000" rgba="0.75 0.6 0.5 1"/>',
              "    </default>",
              '    <default class="bound">',
-             '      <geom type="ellipsoid" contype="0" conaffinity="0" group="3" mass="0" rgba="0.3 0.5 0.9 0.35"/>',
+             '      <geom type="ellipsoid" contype="0" conaffinity="0" group="5" mass="0" rgba="0.3 0.5 0.9 0.35"/>',
              "    </default>",
              "  </default>",
              "  <visual>",

@@ -22,102 +22,17 @@ import sys
 import time as _time
 from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
-from mjccd import bernstein as bz  # noqa: F401  (kernels below are compiled against it)
-from mjccd.ccd import NOISE, _balanced, build_F, rigid_first_contact, solve_intervals
-from mjccd.motion import quadric_affine, quadric_at
-from mjccd.quadric import touching_point
-
 MOTIONS = ("rigid", "affine", "chain")
-BOUND_GROUP = 3
-_jit = numba.njit(cache=True, nogil=True)
-
-# counters of one frame, in this order
-COUNTER_NAMES = ("pairs", "sphere_filtered", "solved", "separate_no_contact", "first_contacts", "in_contact_at_start")
+BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
+# filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
+COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlapping_t0", "solved_exactly",
+                 "colliding", "pruned")
 
 
 class ReplayError(ValueError):
     """Bad replay input: the message names the file or field and what is wrong."""
-
-
-# ---------------------------------------------------------------- kernels
-
-
-@_jit
-def _affine_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1, t_max):
-    """As :func:`mjccd.ccd.rigid_first_contact`, for the affine interpolant (centre and shape lerp)."""
-    length = max(radii_a.max(), radii_b.max())
-    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
-    A2 = _balanced(*quadric_affine(radii_a / length, (pa0 - origin) / length, qa0,
-                                   (pa1 - origin) / length, qa1))
-    B2 = _balanced(*quadric_affine(radii_b / length, (pb0 - origin) / length, qb0,
-                                   (pb1 - origin) / length, qb1))
-    F = build_F(A2[0], A2[1], A2[2], B2[0], B2[1], B2[2])
-    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, True)
-    point = np.zeros(3)
-    normal = np.zeros(3)
-    if status0 != 1:
-        return status0, 0.0, point, normal
-    if intervals.shape[0] == 0:
-        return status0, -1.0, point, normal
-    t = intervals[0, 0]
-    p, n = touching_point(quadric_at(A2[0], A2[1], A2[2], t), quadric_at(B2[0], B2[1], B2[2], t), u)
-    return status0, t, origin + length * p, n
-
-
-@_jit
-def _frame_kernel(affine, radii, reach, pairs, pos0, quat0, pos1, quat1,
-                  status, toi, point, normal, counters):
-    """All pairs of one frame interval: moving-sphere filter, then the exact solver.
-
-    ``status``: 1 separate, 0 touching, -1 overlapping at the start; ``toi``:
-    first contact in [0, 1] or -1.  Each ellipsoid stays inside the ball of
-    radius ``reach`` (its largest radius) around its centre, and centres move
-    on straight lines under both motions, so the filter never drops a contact.
-    """
-    counters[0] += pairs.shape[0]
-    for k in range(pairs.shape[0]):
-        i = pairs[k, 0]
-        j = pairs[k, 1]
-        d0 = pos0[j] - pos0[i]
-        dd = (pos1[j] - pos1[i]) - d0
-        den = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2]
-        s = 0.0
-        if den > 0.0:
-            s = -(d0[0] * dd[0] + d0[1] * dd[1] + d0[2] * dd[2]) / den
-            s = min(1.0, max(0.0, s))
-        m = d0 + s * dd
-        rr = reach[i] + reach[j]
-        if m[0] * m[0] + m[1] * m[1] + m[2] * m[2] > rr * rr * (1.0 + 1e-9) + 1e-300:
-            status[k] = 1
-            toi[k] = -1.0
-            counters[1] += 1
-            continue
-        counters[2] += 1
-        qa1 = quat1[i].copy()
-        if qa1[0] * quat0[i, 0] + qa1[1] * quat0[i, 1] + qa1[2] * quat0[i, 2] + qa1[3] * quat0[i, 3] < 0.0:
-            qa1 = -qa1
-        qb1 = quat1[j].copy()
-        if qb1[0] * quat0[j, 0] + qb1[1] * quat0[j, 1] + qb1[2] * quat0[j, 2] + qb1[3] * quat0[j, 3] < 0.0:
-            qb1 = -qb1
-        if affine:
-            st, t, p, n = _affine_first_contact(radii[i], pos0[i], quat0[i], pos1[i], qa1,
-                                                radii[j], pos0[j], quat0[j], pos1[j], qb1, 1.0)
-        else:
-            st, t, p, n = rigid_first_contact(radii[i], pos0[i], quat0[i], pos1[i], qa1,
-                                              radii[j], pos0[j], quat0[j], pos1[j], qb1, 1.0)
-        status[k] = st
-        toi[k] = t
-        point[k] = p
-        normal[k] = n
-        if st != 1:
-            counters[5] += 1
-        elif t >= 0.0:
-            counters[4] += 1
-        else:
-            counters[3] += 1
 
 
 # ---------------------------------------------------------------- model and trajectory
@@ -130,6 +45,7 @@ class Bounds:
     geom_ids: np.ndarray          # (N,) MuJoCo geom ids
     names: list                   # (N,) geom names
     body_names: list              # (N,) names of the bodies holding them
+    labels: list                  # (N,) body name, or geom name when the body holds several
     radii: np.ndarray             # (N, 3)
     pairs: np.ndarray             # (P, 2) indices into the N ellipsoids
 
@@ -168,10 +84,12 @@ def bounding_ellipsoids(model, pairs=None):
                  if top[a] != top[b] and (moving[a] or moving[b])]
         if not pairs:
             raise ReplayError("model: no pair of ellipsoids under different top-level bodies that moves")
+    labels = [body if body_names.count(body) == 1 else name.removesuffix("_bound")
+              for name, body in zip(names, body_names)]
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     if pairs.size and (pairs.min() < 0 or pairs.max() >= len(ids) or np.any(pairs[:, 0] == pairs[:, 1])):
         raise ReplayError(f"pairs: indices must be distinct and within 0..{len(ids) - 1}")
-    return Bounds(ids, names, body_names, model.geom_size[ids].copy(), pairs)
+    return Bounds(ids, names, body_names, labels, model.geom_size[ids].copy(), pairs)
 
 
 def _moves(model, bodies):
@@ -271,49 +189,66 @@ class FrameContacts:
 
 
 class FrameChecker:
-    """Checks all pairs over one frame interval; the one place the per-frame CCD runs."""
+    """Checks all pairs over one frame interval; the one place the per-frame CCD runs.
+
+    Rigid and affine motions go through :class:`mjccd.scene.Scene` (moving
+    spheres, cached and new separating planes, then the exact solver); the
+    chain motion builds each ellipsoid's :class:`mjccd.Chain` and solves every
+    pair with :func:`mjccd.first_contact`.
+    """
 
     def __init__(self, bounds, motion, model=None):
         self.bounds = bounds
         self.motion = motion
         self.model = model
-        self.radii = np.ascontiguousarray(bounds.radii)
-        self.reach = self.radii.max(axis=1).copy()
-        self.counters = np.zeros(len(COUNTER_NAMES), dtype=np.int64)
+        self.counters = dict.fromkeys(COUNTER_NAMES, 0)
+        if motion != "chain":
+            from mjccd.scene import Scene
+
+            self.scene = Scene(bounds.radii, pairs=bounds.pairs, motion=motion)
         P = len(bounds.pairs)
-        self._status = np.empty(P, dtype=np.int64)
-        self._toi = np.empty(P)
+        self._status = np.ones(P, dtype=np.int64)
+        self._toi = np.full(P, -1.0)
         self._point = np.zeros((P, 3))
         self._normal = np.zeros((P, 3))
 
     def step(self, pos0, quat0, pos1, quat1, qpos0=None, qpos1=None):
         """Results for the interval from poses (N, 3)/(N, 4) at its start to those at its end."""
+        self._status[:] = 1
+        self._toi[:] = -1.0
         if self.motion == "chain":
             self._chain_step(qpos0, qpos1)
         else:
-            _frame_kernel(self.motion == "affine", self.radii, self.reach, self.bounds.pairs,
-                          pos0, quat0, pos1, quat1, self._status, self._toi, self._point,
-                          self._normal, self.counters)
+            res = self.scene.step(np.concatenate([pos0, quat0], axis=1), np.concatenate([pos1, quat1], axis=1),
+                                  all_pairs=True)
+            for c in res.contacts:
+                if c.point is None:
+                    self._status[c.pair], self._toi[c.pair] = -1, 0.0
+                else:
+                    self._toi[c.pair] = c.time
+                    self._point[c.pair], self._normal[c.pair] = c.point, c.normal
+            for name in COUNTER_NAMES:
+                self.counters[name] += getattr(res.counters, name)
         return FrameContacts(self._status, self._toi, self._point, self._normal)
 
     def _chain_step(self, qpos0, qpos1):
         from mjccd import Ellipsoid, first_contact
 
+        radii = self.bounds.radii
         motions = [chain_motion(self.model, g, qpos0, qpos1) for g in self.bounds.geom_ids]
-        self.counters[0] += len(self.bounds.pairs)
+        self.counters["pairs"] += len(self.bounds.pairs)
         for k, (i, j) in enumerate(self.bounds.pairs):
-            self.counters[2] += 1
-            c = first_contact(Ellipsoid(self.radii[i]), motions[i], Ellipsoid(self.radii[j]), motions[j])
+            self.counters["solved_exactly"] += 1
+            c = first_contact(Ellipsoid(radii[i]), motions[i], Ellipsoid(radii[j]), motions[j])
             if c is None:
-                self._status[k], self._toi[k] = 1, -1.0
-                self.counters[3] += 1
-            elif c.point is None:
-                self._status[k], self._toi[k] = (0 if c.status_at_start == "touching" else -1), 0.0
-                self.counters[5] += 1
+                continue
+            self.counters["colliding"] += 1
+            if c.point is None:
+                self._status[k], self._toi[k] = -1, 0.0
+                self.counters["overlapping_t0"] += 1
             else:
-                self._status[k], self._toi[k] = 1, c.time
+                self._toi[k] = c.time
                 self._point[k], self._normal[k] = c.point, c.normal
-                self.counters[4] += 1
 
 
 def chain_motion(model, geom_id, qpos0, qpos1):
@@ -385,7 +320,7 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
     """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
 
     Args:
-        model_path: MJCF file with bounding ellipsoid geoms (group 3).
+        model_path: MJCF file with bounding ellipsoid geoms (group 5).
         traj: ``.npz`` with ``qpos`` (T, nq) and ``time`` (T), or a ``.bvh`` clip.
         motion: ``"rigid"``, ``"affine"`` or ``"chain"`` between consecutive frames.
         out_dir: where to write contacts.json, contacts.csv, timeline.png and frames (None: nothing).
@@ -414,6 +349,7 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
 
 def _run(model, qpos, bounds, motion, result, progress):
     """Kinematics for all frames, then the per-frame checks; fills ``result``."""
+    warm_up(motion)  # the first compile (or cache load) is not part of the timing
     start = _time.perf_counter()
     pos, quat = geom_poses(model, qpos, bounds.geom_ids)
     t_kin = _time.perf_counter() - start
@@ -438,22 +374,70 @@ def _run(model, qpos, bounds, motion, result, progress):
                 "frame": int(k), "toi": float(fc.toi[p]), "time": float(result.time[k] + fc.toi[p] * dt),
                 "ellipsoids": [bounds.names[i], bounds.names[j]],
                 "bodies": [bounds.body_names[i], bounds.body_names[j]],
+                "labels": [bounds.labels[i], bounds.labels[j]],
                 "point": [float(x) for x in fc.point[p]], "normal": [float(x) for x in fc.normal[p]]})
     t_ccd = _time.perf_counter() - start
     result.in_contact = in_contact
-    result.counters = {name: int(v) for name, v in zip(COUNTER_NAMES, checker.counters)}
+    result.counters = {name: int(v) for name, v in checker.counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
                      "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
 
 
 def warm_up(motion="rigid"):
-    """Compile (or load from cache) the per-frame kernel before timing a replay."""
-    radii = np.array([[1.0, 0.5, 0.5], [1.0, 0.5, 0.5]])
-    pos0 = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
-    pos1 = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    quat = np.array([[1.0, 0.0, 0.0, 0.0]] * 2)
-    b = Bounds(np.arange(2), ["a", "b"], ["a", "b"], radii, np.array([[0, 1]]))
-    FrameChecker(b, "affine" if motion == "affine" else "rigid").step(pos0, quat, pos1, quat)
+    """Compile (or load from the cache) the per-frame kernels before timing a replay."""
+    if motion == "chain":
+        return
+    from mjccd.scene import Scene
+
+    poses0 = np.array([[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]])
+    poses1 = np.array([[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])
+    Scene([[1.0, 0.5, 0.5]] * 2, motion=motion).step(poses0, poses1, all_pairs=True)
+
+
+def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
+    """All collision intervals of every pair over one chain-motion segment (thesis Table 6 style).
+
+    Each row: the pair, the motion degree (largest degree in t of the two
+    motions' scaled inverses), the degree of F in t, the time to build F (the
+    pair's quadric polynomials and F), the time to solve, and the intervals
+    (normalised time).  Times are the best of ``repeat`` runs, after one
+    untimed run that compiles.
+    """
+    from mjccd.ccd import NOISE, prepare_pair, solve_intervals
+
+    motions = [chain_motion(model, g, qpos0, qpos1) for g in bounds.geom_ids]
+    rows = []
+    for i, j in bounds.pairs:
+        best_build = best_solve = math.inf
+        for _ in range(repeat + 1):
+            t0 = _time.perf_counter()
+            qa = motions[i].quadric(bounds.radii[i])
+            qb = motions[j].quadric(bounds.radii[j])
+            length = float(max(bounds.radii[i].max(), bounds.radii[j].max()))
+            F, Fabs, _, _, _ = prepare_pair(*qa, *qb, length)
+            t1 = _time.perf_counter()
+            status0, intervals, _ = solve_intervals(F, Fabs, NOISE, 1.0, False)
+            t2 = _time.perf_counter()
+            best_build, best_solve = min(best_build, t1 - t0), min(best_solve, t2 - t1)
+        rows.append({"pair": [bounds.labels[i], bounds.labels[j]],
+                     "motion_degree": int(max(qa[0].shape[2], qb[0].shape[2]) - 1) // 2,
+                     "F_degree_t": int(F.shape[1] - 1), "build_ms": best_build * 1e3,
+                     "solve_ms": best_solve * 1e3, "status_at_start": int(status0),
+                     "intervals": [[float(a), float(b)] for a, b in intervals]})
+    return rows
+
+
+def format_interval_table(rows):
+    """Terminal table of :func:`interval_table` rows with the totals."""
+    lines = [f"{'pair':<36} {'motion deg':>10} {'deg F(t)':>8} {'build [ms]':>10} {'solve [ms]':>10}  intervals"]
+    for r in rows:
+        iv = ", ".join(f"[{a:.9f}, {b:.9f}]" for a, b in r["intervals"]) or "none"
+        lines.append(f"{r['pair'][0] + ' / ' + r['pair'][1]:<36} {r['motion_degree']:>10} {r['F_degree_t']:>8} "
+                     f"{r['build_ms']:>10.3f} {r['solve_ms']:>10.3f}  {iv}")
+    build = sum(r["build_ms"] for r in rows)
+    solve = sum(r["solve_ms"] for r in rows)
+    lines.append(f"{len(rows)} pairs: build {build:.3f} ms + solve {solve:.3f} ms = {build + solve:.3f} ms")
+    return "\n".join(lines)
 
 
 # ---------------------------------------------------------------- reports
@@ -466,7 +450,7 @@ def contact_table(result, max_rows=30):
         return "no contact"
     lines = [f"{'frame':>6} {'time [s]':>12}  {'pair':<44} point [m]"]
     for c in rows[:max_rows]:
-        pair = f"{c['bodies'][0]} / {c['bodies'][1]}"
+        pair = f"{c['labels'][0]} / {c['labels'][1]}"
         p = "(" + ", ".join(f"{x:+.4f}" for x in c["point"]) + ")"
         lines.append(f"{c['frame']:>6} {c['time']:>12.6f}  {pair:<44} {p}")
     if len(rows) > max_rows:
@@ -501,6 +485,7 @@ def _overlap_spans(result):
         i, j = result.bounds.pairs[p]
         spans.append({"ellipsoids": [result.bounds.names[i], result.bounds.names[j]],
                       "bodies": [result.bounds.body_names[i], result.bounds.body_names[j]],
+                      "labels": [result.bounds.labels[i], result.bounds.labels[j]],
                       "frames": [[int(a), int(b) - 1] for a, b in zip(starts, ends)]})
     return spans
 
@@ -534,7 +519,7 @@ def plot_timeline(result, path):
     import matplotlib.pyplot as plt
 
     spans = _overlap_spans(result)
-    labels = [f"{s['bodies'][0]} / {s['bodies'][1]}" for s in spans]
+    labels = [f"{s['labels'][0]} / {s['labels'][1]}" for s in spans]
     fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(spans) + 1.2)))
     t = result.time
     for row, s in enumerate(spans):
@@ -617,23 +602,41 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="mjccd replay",
                                      description="Replay a trajectory and report the first contacts "
                                                  "between bounding ellipsoids.")
-    parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 3)")
+    parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 5)")
     parser.add_argument("traj", help=".npz with qpos (T x nq) and time (T), or a .bvh clip")
     parser.add_argument("--motion", choices=MOTIONS, default="rigid", help="motion between frames")
     parser.add_argument("--out", help="folder for contacts.json, contacts.csv, timeline.png, frames")
     parser.add_argument("--no-render", action="store_true", help="do not render frames")
     parser.add_argument("--rows", type=int, default=30, help="rows of the contact table (default 30)")
+    parser.add_argument("--intervals", action="store_true",
+                        help="also print every pair's collision intervals over each segment between the "
+                             "trajectory's keyframes (npz 'keyframes', chain motion)")
     args = parser.parse_args(argv)
     if not args.no_render and "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"  # must be chosen before mujoco is first imported
     try:
-        warm_up(args.motion)
         result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render)
     except ValueError as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)
         return 2
     print(contact_table(result, args.rows))
     print(summary(result))
+    if args.intervals:
+        try:
+            with np.load(args.traj) as data:
+                keys = np.asarray(data["keyframes"], dtype=np.float64)
+        except (OSError, ValueError, KeyError):
+            print(f"mjccd replay: {args.traj}: --intervals needs an .npz with a 'keyframes' array (K x nq)",
+                  file=sys.stderr)
+            return 2
+        model = load_model(args.model)
+        if keys.ndim != 2 or keys.shape[1] != model.nq or len(keys) < 2:
+            print(f"mjccd replay: {args.traj}: keyframes must have shape (K >= 2, {model.nq}), got {keys.shape}",
+                  file=sys.stderr)
+            return 2
+        for k in range(len(keys) - 1):
+            print(f"keyframe segment {k} -> {k + 1}:")
+            print(format_interval_table(interval_table(model, result.bounds, keys[k], keys[k + 1])))
     if args.out:
         print("wrote " + ", ".join(result.files))
     return 0

@@ -1,0 +1,144 @@
+"""Replay end to end on a short piece of the boxing scene, and clear errors on bad input."""
+import csv
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from mjccd import Ellipsoid, Rigid, first_contact, replay
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+MODEL = ROOT / "models" / "boxing.xml"
+TRAJ = ROOT / "data" / "boxing_traj.npz"
+FIRST, LAST = 136, 150   # frames of the bundled trajectory around the first glove contacts
+
+
+@pytest.fixture(scope="module")
+def short_traj(tmp_path_factory):
+    path = tmp_path_factory.mktemp("traj") / "short.npz"
+    with np.load(TRAJ) as d:
+        np.savez(path, qpos=d["qpos"][FIRST:LAST], time=d["time"][FIRST:LAST])
+    return path
+
+
+@pytest.fixture(scope="module")
+def result(short_traj, tmp_path_factory):
+    out = tmp_path_factory.mktemp("out")
+    return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False), out
+
+
+def test_scene_layout():
+    model = replay.load_model(MODEL)
+    bounds = replay.bounding_ellipsoids(model)
+    assert len(bounds.names) == 42
+    assert len(bounds.pairs) == 21 * 21      # boxer against boxer only
+    assert all(bounds.names[i].startswith("a_") and bounds.names[j].startswith("b_") for i, j in bounds.pairs)
+
+
+def test_end_to_end(result):
+    res, out = result
+    assert res.n_frames == LAST - FIRST
+    assert len(res.contacts) >= 3
+    doc = json.loads((out / "contacts.json").read_text())
+    assert doc["frames"] == LAST - FIRST and doc["pairs"] == 441
+    assert len(doc["first_contacts"]) == len(res.contacts)
+    assert doc["counters"]["pairs"] == 441 * (LAST - FIRST - 1)
+    assert doc["counters"]["sphere_culled"] > 0.9 * doc["counters"]["pairs"]
+    with open(out / "contacts.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(res.contacts)
+    assert (out / "timeline.png").stat().st_size > 1000
+    first = res.contacts[0]
+    assert first["frame"] == 139 - FIRST
+    assert first["bodies"] == ["a_RightArm", "b_LeftForeArm"]
+    assert res.time[first["frame"]] <= first["time"] <= res.time[first["frame"] + 1]
+    assert "a_RightArm / b_LeftForeArm" in replay.contact_table(res)
+    assert "sphere_culled" in replay.summary(res)
+
+
+def test_contact_agrees_with_pairwise_solver(result, short_traj):
+    """Each first contact is the pairwise exact answer for the two geoms' rigid motions."""
+    res, _ = result
+    model = replay.load_model(MODEL)
+    qpos, _ = replay.load_trajectory(short_traj, model)
+    b = res.bounds
+    pos, quat = replay.geom_poses(model, qpos, b.geom_ids)
+    for c in res.contacts[:4]:
+        k = c["frame"]
+        i, j = (b.names.index(n) for n in c["ellipsoids"])
+        got = first_contact(Ellipsoid(b.radii[i]), Rigid(pos[k, i], quat[k, i], pos[k + 1, i], quat[k + 1, i]),
+                            Ellipsoid(b.radii[j]), Rigid(pos[k, j], quat[k, j], pos[k + 1, j], quat[k + 1, j]))
+        assert got is not None and got.point is not None
+        assert abs(got.time - c["toi"]) < 1e-9
+        np.testing.assert_allclose(got.point, c["point"], atol=1e-6)
+
+
+def test_affine_motion_runs(short_traj):
+    res = replay.replay(MODEL, short_traj, "affine", None, progress=False)
+    assert len(res.contacts) >= 1
+
+
+def test_bad_inputs(tmp_path, short_traj):
+    with pytest.raises(ValueError, match="model file not found"):
+        replay.replay(tmp_path / "missing.xml", short_traj, progress=False)
+    bad_xml = tmp_path / "bad.xml"
+    bad_xml.write_text("<mujoco><worldbody><body></mujoco>")
+    with pytest.raises(ValueError, match="not a valid MJCF model"):
+        replay.replay(bad_xml, short_traj, progress=False)
+    narrow = tmp_path / "narrow.npz"
+    np.savez(narrow, qpos=np.zeros((5, 10)), time=np.arange(5.0))
+    with pytest.raises(ValueError, match=r"qpos must have shape \(T, 174\) for this model, got \(5, 10\)"):
+        replay.replay(MODEL, narrow, progress=False)
+    noqpos = tmp_path / "noqpos.npz"
+    np.savez(noqpos, q=np.zeros((5, 174)))
+    with pytest.raises(ValueError, match="no 'qpos' array"):
+        replay.replay(MODEL, noqpos, progress=False)
+    with np.load(short_traj) as d:
+        backwards = tmp_path / "backwards.npz"
+        np.savez(backwards, qpos=d["qpos"], time=d["time"][::-1])
+    with pytest.raises(ValueError, match="time must increase"):
+        replay.replay(MODEL, backwards, progress=False)
+    with pytest.raises(ValueError, match="motion: expected one of rigid, affine, chain"):
+        replay.replay(MODEL, short_traj, "spline", progress=False)
+    clip = ROOT / "data" / "mocap" / "cmu_13_18_boxing_first10s.bvh"
+    with pytest.raises(ValueError, match=r"qpos must have shape \(T, 174\) for this model, got \(1200, 127\)"):
+        replay.replay(MODEL, clip, progress=False)
+    truncated = tmp_path / "cut.bvh"
+    truncated.write_text("\n".join(clip.read_text().splitlines()[:-2]))
+    with pytest.raises(ValueError, match="file truncated"):
+        replay.replay(MODEL, truncated, progress=False)
+    with pytest.raises(ValueError, match="unknown trajectory type"):
+        replay.replay(MODEL, bad_xml, progress=False)
+
+
+def test_cli_errors_are_one_line(tmp_path, capsys, short_traj):
+    assert replay.main([str(tmp_path / "none.xml"), str(short_traj), "--no-render"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"mjccd replay: {tmp_path / 'none.xml'}: model file not found"]
+
+
+def test_cli_runs(tmp_path, capsys, short_traj):
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(tmp_path), "--no-render"]) == 0
+    text = capsys.readouterr().out
+    assert "a_RightArm / b_LeftForeArm" in text and "frames/s" in text
+    assert (tmp_path / "contacts.json").exists()
+
+
+def test_arm_chain_frames_agree_with_whole_sweep(tmp_path):
+    """tan(theta/2)-linear joints: a frame's chain contact lies on the whole sweep's interval."""
+    arm = ROOT / "models" / "arm_obstacle.xml"
+    with np.load(ROOT / "data" / "arm_traj.npz") as d:
+        qpos, time, keys = d["qpos"], d["time"], d["keyframes"]
+    piece = tmp_path / "piece.npz"
+    np.savez(piece, qpos=qpos[48:53], time=time[48:53])
+    res = replay.replay(arm, piece, "chain", None, progress=False)
+    first = res.contacts[0]
+    assert first["labels"] == ["b_4", "web"]
+    model = replay.load_model(arm)
+    rows = {tuple(r["pair"]): r for r in replay.interval_table(model, res.bounds, keys[0], keys[1], repeat=0)}
+    assert len(rows) == 27
+    assert rows[("hand", "web")]["F_degree_t"] == 96
+    t_in = rows[("b_4", "web")]["intervals"][0][0]
+    assert abs(first["time"] - t_in * (time[-1] - time[0])) < 1e-9
+    assert rows[("b_1", "web")]["intervals"] == []

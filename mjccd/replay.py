@@ -550,9 +550,13 @@ def render_frames(model, qpos, result, out, count=4):
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"
     try:
+        import warnings
+
         import mujoco
 
-        renderer = mujoco.Renderer(model, 480, 640)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            renderer = mujoco.Renderer(model, 480, 640)
     except Exception as exc:  # no usable OpenGL context on this machine
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"rendering skipped: no OpenGL backend ({msg}); set MUJOCO_GL=egl or osmesa", file=sys.stderr)

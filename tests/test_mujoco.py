@@ -266,3 +266,127 @@ def test_kinematics_leaves_user_data_alone(arm):
     state = State(_random_qpos(model, np.random.default_rng(5)), d.mocap_pos, d.mocap_quat)
     Kinematics(model).body_poses(state)
     np.testing.assert_array_equal(d.xpos, before)
+
+
+# ---------------------------------------------------------------- wrappers and test helpers
+
+
+def test_dm_control_wrapper_matches_the_monitor():
+    from dm_control import suite
+
+    from mjccd.dm_control import OBSERVATION_KEYS, CCDWrapper
+
+    env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}),
+                     pairs=[("cart", "pole_1")])
+    spec = env.observation_spec()
+    assert all(k in spec for k in OBSERVATION_KEYS) and "position" in spec
+    ts = env.reset()
+    assert np.isinf(ts.observation["ccd/contact_time"])
+    physics = env.physics
+    model = physics.model.ptr
+    reference = CCDMonitor(model, mujoco.MjData(model), env.ellipsoids, pairs=[("cart", "pole_1")])
+    n_sub = env._env._n_sub_steps
+    for k in range(5):
+        start = capture(physics.data.ptr)
+        start_time = physics.data.time
+        qpos_before = physics.data.qpos.copy()
+        ts = env.step(np.array([0.5 * (-1) ** k]))
+        assert physics.data.time == pytest.approx(start_time + n_sub * model.opt.timestep)
+        obs = ts.observation
+        for key in OBSERVATION_KEYS:
+            assert spec[key].shape == np.shape(obs[key])
+        # the cart and pole overlap all along (the pole hangs from the cart): contact at t = 0
+        expected = reference.check(start, State(qpos_before, start.mocap_pos, start.mocap_quat, start_time))
+        if expected is not None:
+            assert obs["ccd/contact_time"] == 0.0
+        assert len(env.last_contacts) == n_sub
+        first = env.last_contacts[0]
+        assert obs["ccd/contact_time"] == pytest.approx(first.time - start_time, abs=1e-15)
+        assert tuple(obs["ccd/contact_pair"]) == first.body_ids
+
+
+def test_dm_control_wrapper_reports_a_thrown_ball():
+    from dm_control.rl import control
+
+    from mjccd.dm_control import CCDWrapper
+    from dm_control import mujoco as dm_mujoco
+
+    class Throw(control.Task):
+        def initialize_episode(self, physics):
+            physics.data.qvel[0], physics.data.qvel[6] = 7.0, -7.0
+
+        def get_observation(self, physics):
+            return {"qpos": physics.data.qpos.copy()}
+
+        def get_reward(self, physics):
+            return 0.0
+
+        def action_spec(self, physics):
+            from dm_env import specs
+            return specs.BoundedArray((0,), float, [], [])
+
+        def before_step(self, action, physics):
+            pass
+
+    physics = dm_mujoco.Physics.from_xml_string(THROW)
+    env = CCDWrapper(control.Environment(physics, Throw(), n_sub_steps=5, legacy_step=False))
+    ts = env.reset()
+    m = physics.model.ptr
+    t_star = (1.0 - 0.3) / 14.0
+    hit = None
+    while hit is None:
+        start = physics.data.time
+        ts = env.step(np.zeros(0))
+        if np.isfinite(ts.observation["ccd/contact_time"]):
+            hit = start + ts.observation["ccd/contact_time"]
+    assert abs(hit - t_star) <= 1e-9 * m.opt.timestep
+    np.testing.assert_allclose(ts.observation["ccd/contact_normal"], [1, 0, 0], atol=1e-7)
+    assert tuple(ts.observation["ccd/contact_pair"]) == (1, 2)
+
+
+def test_gymnasium_wrapper_if_installed():
+    gymnasium = pytest.importorskip("gymnasium")
+    pytest.importorskip("gymnasium.envs.mujoco")
+    from mjccd.mujoco.gym import CCDGymWrapper
+
+    env = CCDGymWrapper(gymnasium.make("Ant-v5"), report_overlapping=False)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(env.action_space.sample())
+    assert set(info["ccd"]) >= {"contact_time", "contact_pair", "contact_point", "contact_normal", "contacts"}
+
+
+def _balls():
+    xml = THROW.replace('size="0.2 0.1 0.15"', 'size="0.2 0.2 0.2"')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    d.qvel[0], d.qvel[6] = 5.0, -5.0
+    rows = [d.qpos.copy()]
+    for _ in range(80):
+        mujoco.mj_step(m, d)
+        rows.append(d.qpos.copy())
+    return m, np.array(rows)
+
+
+def test_testing_helpers_pass_and_fail_readably():
+    from mjccd.testing import assert_first_contact, assert_intervals, assert_no_contact
+
+    m, qpos = _balls()
+    t_in = 0.7 / 10.0
+    c = assert_first_contact(m, qpos, ("left", "right"), t_in, tol=1e-9)
+    assert c.bodies == ("left", "right")
+    assert_intervals(m, qpos, ("left", "right"), [(t_in, 1.3 / 10.0)], tol=1e-9)
+    with pytest.raises(AssertionError) as err:
+        assert_first_contact(m, qpos, ("left", "right"), 0.05, tol=1e-6)
+    msg = str(err.value)
+    assert "expected t = 0.05 s" in msg and "found t = 0.07 s ('left'-'right'" in msg and "point [" in msg
+    assert "off by +0.02 s" in msg
+    with pytest.raises(AssertionError, match=r"found no contact over \[0, 0.01\] s"):
+        assert_first_contact(m, qpos[:6], ("left", "right"), 0.05)
+    with pytest.raises(AssertionError, match=r"expected no contact, found contacts in \d+ step\(s\):\n  t = 0.07 s"):
+        assert_no_contact(m, qpos)
+    with pytest.raises(AssertionError, match=r"expected 2 interval\(s\) .* found 1 \[\(0.07, 0.13\)\]"):
+        assert_intervals(m, qpos, ("left", "right"), [(0.07, 0.08), (0.09, 0.13)])
+    with pytest.raises(AssertionError, match=r"interval 0 expected \(0.07, 0.12\), found \(0.07, 0.13\)"):
+        assert_intervals(m, qpos, ("left", "right"), [(0.07, 0.12)])
+    with pytest.raises(ValueError, match=r"trajectory: expected qpos of shape \(T >= 2, nq = 14\)"):
+        assert_no_contact(m, qpos[:, :3])

@@ -62,32 +62,54 @@ def excluded_body_pairs(model):
     return out
 
 
+def _filtered_by_mujoco(model, a, b):
+    """MuJoCo's own body-pair filter: same weld body, or (with filterparent) weld parent and child."""
+    weld = model.body_weldid
+    wa, wb = weld[a], weld[b]
+    if wa == wb:
+        return True
+    if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT:
+        return False
+    pa, pb = weld[model.body_parentid[wa]], weld[model.body_parentid[wb]]
+    return wa != 0 and wb != 0 and (wa == pb or wb == pa)
+
+
+def _can_touch(model, a, b):
+    """True when some collision geom of body a and some of body b pass the contype/conaffinity test."""
+    def geoms(body):
+        start = model.body_geomadr[body]
+        return range(start, start + model.body_geomnum[body]) if start >= 0 else range(0)
+    for g in geoms(a):
+        for h in geoms(b):
+            if (model.geom_contype[g] & model.geom_conaffinity[h]) or (model.geom_contype[h] & model.geom_conaffinity[g]):
+                return True
+    return False
+
+
 def default_pairs(model, ellipsoids, *, drop_overlapping_at_qpos0=True):
     """(P, 2) ellipsoid index pairs worth checking.
 
-    Kept: ellipsoids on different bodies that can move relative to each other
-    (different ``body_weldid``), that are not parent and child joined by a
-    joint, and whose bodies are not listed in ``<exclude>``.  With
-    ``drop_overlapping_at_qpos0`` the pairs whose ellipsoids already touch or
-    overlap in the model's reference pose ``qpos0`` are dropped too: neighbours
-    such as a shoulder and the chest are always in contact and would report
-    a contact at every step.
+    The pairs of bodies MuJoCo itself would test for contact: different weld
+    bodies, not a weld parent and child (unless ``filterparent`` is disabled),
+    not listed in ``<exclude>``, and with at least one geom pair passing the
+    contype/conaffinity test.  With ``drop_overlapping_at_qpos0`` the pairs
+    whose ellipsoids already touch or overlap in the reference pose ``qpos0``
+    are dropped too: close neighbours (a hip and the lower back) would
+    otherwise report a contact at every step.
     """
     ids = ellipsoids.body_ids(model)
     excluded = excluded_body_pairs(model)
-    weld = model.body_weldid
-    parent = model.body_parentid
+    verdict = {}
     rows = []
     for i in range(len(ids)):
         for j in range(i + 1, len(ids)):
-            a, b = int(ids[i]), int(ids[j])
-            if weld[a] == weld[b]:
-                continue
-            if (parent[a] == b and model.body_jntnum[a] > 0) or (parent[b] == a and model.body_jntnum[b] > 0):
-                continue
-            if _pair_key(a, b) in excluded:
-                continue
-            rows.append((i, j))
+            key = _pair_key(int(ids[i]), int(ids[j]))
+            if key not in verdict:
+                a, b = key
+                verdict[key] = (a != b and not _filtered_by_mujoco(model, a, b) and key not in excluded
+                                and _can_touch(model, a, b))
+            if verdict[key]:
+                rows.append((i, j))
     pairs = np.array(rows, dtype=np.int64).reshape(-1, 2)
     if drop_overlapping_at_qpos0 and len(pairs):
         kin = Kinematics(model)
@@ -144,10 +166,13 @@ class CCDMonitor:
         motion: "rigid", "affine" or "chain" (see :func:`motions_between`).
         on_contact: called with each reported :class:`StepContact`.
         all_pairs: report every colliding pair, not only the first contact.
+        report_overlapping: when False, pairs already touching or overlapping at
+            the start of a step are left out (only new contacts are reported;
+            this checks every pair, without the earliest-contact bound).
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False):
+                 all_pairs=False, report_overlapping=True):
         if not isinstance(model, mujoco.MjModel):
             raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
         if not isinstance(data, mujoco.MjData):
@@ -160,6 +185,7 @@ class CCDMonitor:
             raise ValueError("on_contact: expected a callable or None")
         self.model, self.data, self.ellipsoids = model, data, ellipsoids
         self.motion, self.on_contact, self.all_pairs = motion, on_contact, bool(all_pairs)
+        self.report_overlapping = bool(report_overlapping)
         self.body_ids = ellipsoids.body_ids(model)
         self.pairs = default_pairs(model, ellipsoids) if pairs is None else pairs_from_bodies(
             model, ellipsoids, pairs)
@@ -217,6 +243,10 @@ class CCDMonitor:
             report = self._check_scene(s0, s1)
         else:
             report = self._check_chain(s0, s1)
+        if not self.report_overlapping:
+            kept = tuple(c for c in report.contacts if c.status_at_start == "separate")
+            report = StepReport(kept[0] if kept else None, kept if self.all_pairs else (),
+                                report.pairs_checked, report.pairs_solved)
         self.last_report = report
         if self.on_contact is not None:
             for c in (report.contacts if self.all_pairs else ((report.first,) if report.first else ())):
@@ -248,7 +278,7 @@ class CCDMonitor:
         p0 = self._poses(s0)
         p1 = self._kin.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions, self.ellipsoids.quaternions)
         self._cached = (s1, p1)
-        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs)
+        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs or not self.report_overlapping)
 
         def convert(pc):
             i, j = self.pairs[pc.pair]
@@ -276,8 +306,8 @@ class CCDMonitor:
                 if gap > 1e-9 * (rmax[i] + rmax[j]):
                     continue
             solved += 1
-            hit = first_contact(shapes[i], motions[i], shapes[j], motions[j],
-                                t_max=1.0 if self.all_pairs else t_max)
+            exhaustive = self.all_pairs or not self.report_overlapping
+            hit = first_contact(shapes[i], motions[i], shapes[j], motions[j], t_max=1.0 if exhaustive else t_max)
             if hit is None:
                 continue
             c = self._contact(s0, s1, i, j, hit.time, hit.point, hit.normal, p0)
@@ -285,4 +315,5 @@ class CCDMonitor:
             if first is None or c.fraction < first.fraction:
                 first, t_max = c, c.fraction
         contacts.sort(key=lambda c: c.fraction)
-        return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved)
+        keep_all = self.all_pairs or not self.report_overlapping
+        return StepReport(first, tuple(contacts) if keep_all else (), len(self.pairs), solved)

@@ -1,0 +1,175 @@
+"""Environment wrappers: the exact first contact of every control step, over all physics substeps."""
+import collections
+from collections.abc import Mapping
+
+import dm_env
+import mujoco
+import numpy as np
+from dm_env import specs
+
+from mjccd.mujoco.ellipsoids import EllipsoidSet
+from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.mujoco.motions import capture
+
+OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
+
+
+def _fit(model, ellipsoids, per):
+    if ellipsoids is None:
+        from mjccd.fit import fit_model
+
+        return fit_model(model, per=per)
+    if not isinstance(ellipsoids, EllipsoidSet):
+        raise ValueError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
+    return ellipsoids
+
+
+class SubstepRecorder:
+    """Checks every ``mj_step`` of a control step and collects what the monitor reports."""
+
+    def __init__(self, monitor):
+        self.monitor = monitor
+        self.contacts = []
+        self.start_time = 0.0
+
+    def begin(self, data):
+        self.monitor.data = data
+        self.contacts = []
+        self.start_time = float(data.time)
+
+    def substep(self, advance, data):
+        """Advance the simulation by one step with ``advance()`` and check that step."""
+        s0 = capture(data)
+        advance()
+        self.monitor.check(s0, capture(data))
+        report = self.monitor.last_report
+        found = report.contacts if self.monitor.all_pairs else ((report.first,) if report.first else ())
+        self.contacts.extend(found)
+
+    def first(self):
+        """The earliest contact of the control step, or None."""
+        return min(self.contacts, key=lambda c: c.time) if self.contacts else None
+
+    def observation(self, model):
+        """The ``ccd/*`` observation entries for the control step just recorded."""
+        c = self.first()
+        if c is None:
+            return {"ccd/contact_time": np.array(np.inf), "ccd/contact_pair": np.full(2, -1, np.int32),
+                    "ccd/contact_point": np.zeros(3), "ccd/contact_normal": np.zeros(3)}
+        return {"ccd/contact_time": np.array(c.time - self.start_time),
+                "ccd/contact_pair": np.array(c.body_ids, np.int32),
+                "ccd/contact_point": np.zeros(3) if c.point is None else c.point.copy(),
+                "ccd/contact_normal": np.zeros(3) if c.normal is None else c.normal.copy()}
+
+
+def observation_specs():
+    """Specs of the ``ccd/*`` observation entries."""
+    return collections.OrderedDict([
+        ("ccd/contact_time", specs.Array((), np.float64, "ccd/contact_time")),
+        ("ccd/contact_pair", specs.Array((2,), np.int32, "ccd/contact_pair")),
+        ("ccd/contact_point", specs.Array((3,), np.float64, "ccd/contact_point")),
+        ("ccd/contact_normal", specs.Array((3,), np.float64, "ccd/contact_normal")),
+    ])
+
+
+class CCDWrapper(dm_env.Environment):
+    """Wraps a dm-control environment and adds the first contact of each control step.
+
+    Every physics substep of a control step is checked.  The observation gains
+    ``ccd/contact_time`` (seconds from the start of the control step to the
+    first contact, +inf when none), ``ccd/contact_pair`` (the two MuJoCo body
+    ids, -1 when none), ``ccd/contact_point`` and ``ccd/contact_normal``
+    (world frame, normal out of the first body; zeros when none or when the
+    pair already overlapped at the start of a substep).  ``last_contacts``
+    holds the :class:`~mjccd.mujoco.StepContact` objects of the last step.
+
+    Args:
+        env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
+        ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
+        pairs, motion, on_contact, all_pairs, report_overlapping: as in :class:`~mjccd.mujoco.CCDMonitor`.
+    """
+
+    def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
+                 all_pairs=False, report_overlapping=True, per="body"):
+        physics = getattr(env, "physics", None)
+        if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
+            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
+        if not isinstance(env.observation_spec(), Mapping):
+            raise ValueError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
+        self._env = env
+        model = physics.model.ptr
+        self.ellipsoids = _fit(model, ellipsoids, per)
+        self.monitor = CCDMonitor(model, physics.data.ptr, self.ellipsoids, pairs=pairs, motion=motion,
+                                  on_contact=on_contact, all_pairs=all_pairs,
+                                  report_overlapping=report_overlapping)
+        self._recorder = SubstepRecorder(self.monitor)
+        self.last_contacts = []
+
+    @property
+    def physics(self):
+        return self._env.physics
+
+    def _with_ccd(self, timestep, recorded):
+        obs = collections.OrderedDict(timestep.observation)
+        if recorded:
+            obs.update(self._recorder.observation(self.monitor.model))
+        else:
+            obs.update(SubstepRecorder(self.monitor).observation(self.monitor.model))
+        return timestep._replace(observation=obs)
+
+    def reset(self):
+        self.last_contacts = []
+        return self._with_ccd(self._env.reset(), False)
+
+    def step(self, action):
+        physics = self._env.physics
+        if physics.model.ptr is not self.monitor.model:
+            raise ValueError("env: the physics model was reloaded; wrap the environment again")
+        data = physics.data.ptr
+        recorder = self._recorder
+        recorder.begin(data)
+        original = physics.step
+
+        def checked_step(nstep=1):
+            for _ in range(int(nstep)):
+                recorder.substep(lambda: original(1), data)
+
+        physics.step = checked_step
+        try:
+            timestep = self._env.step(action)
+        finally:
+            del physics.step
+        self.last_contacts = sorted(recorder.contacts, key=lambda c: c.time)
+        return self._with_ccd(timestep, True)
+
+    def observation_spec(self):
+        spec = collections.OrderedDict(self._env.observation_spec())
+        spec.update(observation_specs())
+        return spec
+
+    def action_spec(self):
+        return self._env.action_spec()
+
+    def reward_spec(self):
+        return self._env.reward_spec()
+
+    def discount_spec(self):
+        return self._env.discount_spec()
+
+    def close(self):
+        return self._env.close()
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name == "_env":
+            raise AttributeError(name)
+        return getattr(self._env, name)
+
+
+def _model_and_data(env):
+    """(MjModel, MjData) of a Gymnasium MuJoCo environment."""
+    base = getattr(env, "unwrapped", env)
+    model, data = getattr(base, "model", None), getattr(base, "data", None)
+    if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
+        raise ValueError(f"env: expected a Gymnasium MuJoCo environment with `model` and `data`, "
+                         f"got {type(base).__name__}")
+    return base, model, data

@@ -1,0 +1,172 @@
+"""Contact-time assertions for users' own test suites, with messages that show expected vs found."""
+import os
+
+import mujoco
+import numpy as np
+
+from mjccd.ccd import collision_intervals
+from mjccd.quadric import Ellipsoid
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.mujoco.motions import State, motions_between
+
+
+def load_model(model):
+    """An ``MjModel`` from a model, an MJCF path, or an MJCF string."""
+    if isinstance(model, mujoco.MjModel):
+        return model
+    if isinstance(model, (str, os.PathLike)):
+        text = os.fspath(model)
+        if text.lstrip().startswith("<"):
+            return mujoco.MjModel.from_xml_string(text)
+        if not os.path.exists(text):
+            raise ValueError(f"model: no such file {text!r}")
+        return mujoco.MjModel.from_xml_path(text)
+    raise ValueError(f"model: expected an MjModel, an MJCF path or an MJCF string, got {type(model).__name__}")
+
+
+def load_trajectory(trajectory, model, times=None):
+    """(qpos (T, nq), times (T,)) from an array or an ``.npz`` with ``qpos`` (and optionally ``time``)."""
+    if isinstance(trajectory, (str, os.PathLike)):
+        path = os.fspath(trajectory)
+        if not path.endswith(".npz"):
+            raise ValueError(f"trajectory: expected an .npz file with a 'qpos' array, got {path!r}")
+        with np.load(path) as f:
+            if "qpos" not in f:
+                raise ValueError(f"trajectory: {path} has no 'qpos' array")
+            qpos = f["qpos"]
+            if times is None and "time" in f:
+                times = f["time"]
+    else:
+        qpos = trajectory
+    qpos = np.asarray(qpos, dtype=float)
+    if qpos.ndim != 2 or qpos.shape[1] != model.nq or qpos.shape[0] < 2:
+        raise ValueError(f"trajectory: expected qpos of shape (T >= 2, nq = {model.nq}), got {qpos.shape}")
+    bad = np.argwhere(~np.isfinite(qpos))
+    if len(bad):
+        raise ValueError(f"trajectory[{bad[0][0]}][{bad[0][1]}]: is NaN or infinite")
+    if times is None:
+        times = np.arange(len(qpos)) * model.opt.timestep
+    times = np.asarray(times, dtype=float)
+    if times.shape != (len(qpos),) or not np.all(np.diff(times) > 0):
+        raise ValueError(f"times: expected {len(qpos)} increasing values, got shape {times.shape}")
+    return qpos, times
+
+
+def _setup(model, trajectory, ellipsoids, times):
+    model = load_model(model)
+    qpos, times = load_trajectory(trajectory, model, times)
+    if ellipsoids is None:
+        from mjccd.fit import fit_model
+
+        ellipsoids = fit_model(model)
+    elif not isinstance(ellipsoids, EllipsoidSet):
+        raise ValueError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
+    return model, qpos, times, ellipsoids
+
+
+def _states(model, qpos, times):
+    mpos = model.body_pos[model.body_mocapid >= 0].copy()
+    mquat = model.body_quat[model.body_mocapid >= 0].copy()
+    return [State(q, mpos, mquat, float(t)) for q, t in zip(qpos, times)]
+
+
+def _describe(c):
+    where = "" if c.point is None else (f" at point {np.array2string(c.point, precision=6)}"
+                                        f" normal {np.array2string(c.normal, precision=6)}")
+    return (f"t = {c.time:.9g} s ({c.bodies[0]!r}-{c.bodies[1]!r}, {c.status_at_start} at step start)"
+            + where)
+
+
+def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None):
+    """First contact of every step of a qpos trajectory: a list of ``StepContact`` (steps without one skipped)."""
+    model, qpos, times, ellipsoids = _setup(model, trajectory, ellipsoids, times)
+    monitor = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs=pairs, motion=motion)
+    states = _states(model, qpos, times)
+    found = []
+    for s0, s1 in zip(states, states[1:]):
+        c = monitor.check(s0, s1)
+        if c is not None:
+            found.append(c)
+    return found
+
+
+def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
+    """Assert that the bodies of ``pair`` first touch at ``time`` seconds (within ``tol``) along the trajectory.
+
+    Args:
+        model: ``MjModel``, MJCF path or MJCF string.
+        trajectory: (T, nq) qpos rows, or an ``.npz`` with ``qpos`` (and ``time``).
+        pair: (body, body) names or ids.
+        time: expected simulation time of the first contact (``times[0]`` is the start).
+        times: (T,) times of the rows; default ``k * model.opt.timestep``.
+    """
+    found = trajectory_contacts(model, trajectory, pairs=[pair], ellipsoids=ellipsoids, motion=motion, times=times)
+    head = f"first contact of {pair[0]!r} and {pair[1]!r}: expected t = {time:.9g} s (tol {tol:g})"
+    if not found:
+        qpos_times = load_trajectory(trajectory, load_model(model), times)[1]
+        raise AssertionError(f"{head}, found no contact over [{qpos_times[0]:.9g}, {qpos_times[-1]:.9g}] s")
+    c = found[0]
+    if abs(c.time - time) > tol:
+        raise AssertionError(f"{head}, found {_describe(c)}; off by {c.time - time:+.3g} s")
+    return c
+
+
+def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None, show=5):
+    """Assert that no pair (default: :func:`~mjccd.mujoco.default_pairs`) touches along the trajectory."""
+    found = trajectory_contacts(model, trajectory, pairs=pairs, ellipsoids=ellipsoids, motion=motion, times=times)
+    if found:
+        lines = "\n".join("  " + _describe(c) for c in found[:show])
+        more = f"\n  ... and {len(found) - show} more" if len(found) > show else ""
+        raise AssertionError(f"expected no contact, found contacts in {len(found)} step(s):\n{lines}{more}")
+
+
+def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid", times=None):
+    """Maximal time intervals [t_in, t_out] (seconds) in which the two bodies' ellipsoids are not separate."""
+    model, qpos, times, ellipsoids = _setup(model, trajectory, ellipsoids, times)
+    monitor = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs=[pair], motion=motion)
+    states = _states(model, qpos, times)
+    shapes = [Ellipsoid(r) for r in ellipsoids.radii]
+    ids = monitor.body_ids
+    out = []
+    for k, (s0, s1) in enumerate(zip(states, states[1:])):
+        motions = motions_between(model, ellipsoids, s0, s1, motion, body_ids=ids)
+        span = s1.time - s0.time
+        for i, j in monitor.pairs:
+            for a, b in collision_intervals(shapes[i], motions[i], shapes[j], motions[j]):
+                lo, hi = s0.time + a * span, s0.time + b * span
+                if out and lo <= out[-1][1] + 1e-12 * max(1.0, abs(lo)):
+                    out[-1] = (out[-1][0], max(out[-1][1], hi))
+                else:
+                    out.append((lo, hi))
+    out.sort()
+    merged = []
+    for lo, hi in out:
+        if merged and lo <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], hi))
+        else:
+            merged.append((lo, hi))
+    return merged
+
+
+def assert_intervals(model, trajectory, pair, intervals, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
+    """Assert the contact intervals (seconds) of a body pair along the trajectory, endpoint by endpoint."""
+    found = contact_intervals(model, trajectory, pair, ellipsoids=ellipsoids, motion=motion, times=times)
+    expected = [(float(a), float(b)) for a, b in intervals]
+
+    def fmt(rows):
+        return "[" + ", ".join(f"({a:.9g}, {b:.9g})" for a, b in rows) + "]"
+
+    head = f"contact intervals of {pair[0]!r} and {pair[1]!r} (tol {tol:g} s)"
+    if len(found) != len(expected):
+        raise AssertionError(f"{head}: expected {len(expected)} interval(s) {fmt(expected)}, "
+                             f"found {len(found)} {fmt(found)}")
+    for k, ((ea, eb), (fa, fb)) in enumerate(zip(expected, found)):
+        if abs(ea - fa) > tol or abs(eb - fb) > tol:
+            raise AssertionError(f"{head}: interval {k} expected ({ea:.9g}, {eb:.9g}), found ({fa:.9g}, {fb:.9g})"
+                                 f"\n  expected {fmt(expected)}\n  found    {fmt(found)}")
+    return found
+
+
+__all__ = ["assert_first_contact", "assert_intervals", "assert_no_contact", "contact_intervals", "load_model",
+           "load_trajectory", "trajectory_contacts", "body_label"]

@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/mjccd solve examples/cases.json --table
+	$(VENV)/bin/mjccd replay models/boxing.xml data/boxing_traj.npz --out replay-out
 
 test: $(STAMP)
 	$(PY) -m pytest

@@ -21,6 +21,9 @@ CONTACT = 1
 MAX_ITERATIONS = 2
 MAX_NODES = 3
 
+# primitives with at most this many line pairs skip the contour sweep
+PAIRWISE_MAX = 16
+
 # method codes
 OURS = 0
 TRAD = 1
@@ -149,6 +152,36 @@ def _project(p0, p1, n, ex, ey, ez, a, b):
 
 
 @_jit
+def _pairwise_gap(a1, b1, s1, n1, a2, b2, s2, n2, tl, tu, out, k):
+    """Where ``max(line set 1) + shift < min(line set 2) - shift``, by testing all pairs.
+
+    The same open interval as the contour sweep (written to ``out[k]`` with the same
+    conventions), in O(n1 n2): the cheaper route for the few lines of small primitives.
+    """
+    lo = -INF
+    hi = INF
+    for i in range(n1):
+        for j in range(n2):
+            sl = a1[i] - a2[j]
+            ic = b1[i] - b2[j] + s1[i] + s2[j]
+            if sl > 0.0:
+                r = -ic / sl
+                if r < hi:
+                    hi = r
+            elif sl < 0.0:
+                r = -ic / sl
+                if r > lo:
+                    lo = r
+            elif ic >= 0.0:
+                return k
+    if lo >= hi or hi <= tl or lo >= tu:
+        return k
+    out[k, 0] = lo if lo >= tl else -INF
+    out[k, 1] = hi if hi <= tu else INF
+    return k + 1
+
+
+@_jit
 def _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ex, ey, ez, tl, tu, ws, out, k):
     """Non-overlap intervals on one axis (A below B, B below A); returns the new count."""
     aa = ws.aa
@@ -157,6 +190,11 @@ def _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ex, ey, ez, tl, tu, ws, out, 
     bb = ws.bb
     _project(pa0, pa1, na, ex, ey, ez, aa, ba)
     _project(pb0, pb1, nb, ex, ey, ez, ab, bb)
+    if na * nb <= PAIRWISE_MAX:
+        k = _pairwise_gap(aa, ba, sa, na, ab, bb, sb, nb, tl, tu, out, k)
+        if k > 0 and out[k - 1, 0] == -INF and out[k - 1, 1] == INF:
+            return k
+        return _pairwise_gap(ab, bb, sb, nb, aa, ba, sa, na, tl, tu, out, k)
     _sort_by_slope(aa, na, ws.oa)
     _sort_by_slope(ab, nb, ws.ob)
     # A below B: max_A(t) + eps < min_B(t) - eps  <=>  maxA + (-minB) < 0
@@ -239,7 +277,15 @@ def intersection_period(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_
     """
     el = tl - time_margin
     eu = tu + time_margin
-    nax = _axes(fa, fb, use_obb, ws.axes)
+    if use_obb and (na == 1 or nb == 1):
+        # a point against a box: the box's own three axes are exact (no cross axes)
+        f = fb if na == 1 else fa
+        for r in range(3):
+            for c in range(3):
+                ws.axes[r, c] = f[r, c]
+        nax = 3
+    else:
+        nax = _axes(fa, fb, use_obb, ws.axes)
     k = 0
     for q in range(nax):
         k = _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ws.axes[q, 0], ws.axes[q, 1],
@@ -866,3 +912,20 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
     info_out[1] = iterations
     info_out[2] = found
     info_out[3] = peak
+
+
+@_jit
+def search_batch(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
+                 method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
+                 toi_out, status_out, iterations_out):
+    """One single-pair search per query q: roots_a[q] against roots_b[q] (shape (Q, 1, N, 7))."""
+    pairs = np.zeros((1, 2), np.int64)
+    points = np.empty((1, 9))
+    info = np.zeros(4, np.int64)
+    for q in range(roots_a.shape[0]):
+        search(kind_a, corners_a, sub_a, roots_a[q], kind_b, corners_b, sub_b, roots_b[q],
+               pairs, method, use_obb, delta, t_max, rel, time_margin, max_iterations,
+               max_nodes, False, 0.0, 0.0, points, info)
+        status_out[q] = info[0]
+        iterations_out[q] = info[1]
+        toi_out[q] = points[0, 0] if info[0] != NO_CONTACT else INF

@@ -16,6 +16,17 @@ def array(value, shape, field):
     return np.ascontiguousarray(arr)
 
 
+def scalar(value, field):
+    """A finite number."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field}: expected a number, got {value!r}") from None
+    if not np.isfinite(x):
+        raise ValueError(f"{field}: must be finite, got {x}")
+    return x
+
+
 def vector(value, n, field):
     """A finite vector of length n."""
     return array(value, (n,), field)

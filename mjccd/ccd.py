@@ -299,6 +299,24 @@ def search_exit(F, Fabs, noise, t_start, t_end):
         if count > MAX_BOXES:
             return t0
         width = t1 - t0
+        # Bézier clipping in t: F(u, t) <= sum_j max_i C[i, j] B_j(t), so when that
+        # column-wise upper bound starts negative, F < 0 up to its first root.
+        upper = np.empty(C.shape[1])
+        for j in range(C.shape[1]):
+            upper[j] = C[:, j].max()
+        r = 0.0
+        if upper[0] < 0.0:
+            r = bz.first_root(upper, 1e-12)
+            if r < 0.0:  # the bound never reaches zero: F < 0 on the whole box
+                continue
+        if r > 0.05 and width > EXIT_BOX_TOL:
+            clipped = np.empty_like(C)
+            for i in range(C.shape[0]):
+                clipped[i] = bz.restrict(C[i].copy(), r, 1.0)
+            boxes.append(clipped)
+            ends.append(t1)
+            heapq.heappush(heap, (t0 + r * width, len(boxes) - 1))
+            continue
         if width <= EXIT_BOX_TOL:
             code, gmax, _ = status_at(F, Fabs, noise, t1)
             if gmax >= 0.0:

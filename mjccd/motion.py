@@ -508,8 +508,8 @@ class Slide:
         if n < 1e-12:
             raise ValueError("axis: zero vector")
         self.axis = axis / n
-        self.displacement0 = float(_validate.array(displacement0, (), "displacement[0]"))
-        self.displacement1 = float(_validate.array(displacement1, (), "displacement[1]"))
+        self.displacement0 = _validate.scalar(displacement0, "displacement[0]")
+        self.displacement1 = _validate.scalar(displacement1, "displacement[1]")
 
     def w(self):
         return w_of_translation(_linear_bernstein(self.axis * self.displacement0, self.axis * self.displacement1))

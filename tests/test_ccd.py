@@ -139,6 +139,16 @@ def test_intervals_of_a_spinning_ellipsoid():
     assert angles[2] - np.pi / 2 == pytest.approx(-(angles[3] - np.pi / 2), abs=1e-8)
 
 
+def test_slide_chain_equals_translation():
+    a, b = mjccd.Ellipsoid([0.3, 0.2, 0.2]), mjccd.Ellipsoid([0.25] * 3)
+    chain = mjccd.Chain([mjccd.Fixed([-2, 0.1, 0]), mjccd.Slide([2, 0, 0], 0.0, 3.0)])
+    rigid = mjccd.Rigid([-2, 0.1, 0], ID, [1, 0.1, 0], ID)
+    mb = mjccd.Static([0, 0, 0])
+    assert np.allclose(mjccd.collision_intervals(a, chain, b, mb), mjccd.collision_intervals(a, rigid, b, mb), atol=1e-12)
+    with pytest.raises(ValueError, match="displacement"):
+        mjccd.Slide([1, 0, 0], 0.0, float("nan"))
+
+
 def test_t_max_bounds_the_search():
     a, b = mjccd.Ellipsoid([0.5] * 3), mjccd.Ellipsoid([0.5] * 3)
     ma = mjccd.Rigid([-3, 0, 0], ID, [0, 0, 0], ID)

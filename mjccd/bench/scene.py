@@ -339,7 +339,7 @@ def bench_table3(n_frames, seed, repeats):
 
 def _mjcf(radii):
     bodies = "\n".join(
-        f'    <body name="e{i}" mocap="true"><geom name="e{i}" type="ellipsoid" size="{r[0]!r} {r[1]!r} {r[2]!r}"/></body>'
+        f'    <body name="e{i}" mocap="true"><geom name="e{i}" type="ellipsoid" size="{float(r[0])!r} {float(r[1])!r} {float(r[2])!r}"/></body>'
         for i, r in enumerate(radii))
     return f"""<mujoco model="mjccd-boxers">
   <option ccd_tolerance="1e-12" ccd_iterations="200"/>

@@ -343,7 +343,8 @@ class _Scan:
 def _bisect(h, a, b, ha, hb):
     """Root of h in [a, b] with sign(ha) != sign(hb) (Illinois regula falsi)."""
     side = 0
-    while b - a > T_TOL:
+    tol = max(T_TOL, mpf(10) ** (5 - mp.dps))
+    while b - a > tol:
         c = (a * hb - b * ha) / (hb - ha)
         if not a < c < b:
             c = (a + b) / 2
@@ -507,6 +508,47 @@ def _check(case, st0, h):
 def solve_cases(cases, check=True):
     """Reference results for a {"version": 1, "cases": [...]} dict."""
     return {'version': 1, 'results': [solve_case(c, check) for c in cases['cases']]}
+
+
+# ---------------------------------------------------------------- scoring
+TIME_TOL = 1e-9    # |dt| allowed on first contact and interval endpoints
+POINT_TOL = 1e-6   # contact point error allowed, relative to the largest radius
+
+
+def compare(case, expected, got):
+    """Reasons (list of str) why ``got`` does not match ``expected``; empty when it does.
+
+    Same criteria as tests/data/check.py.
+    """
+    why = []
+    if got is None:
+        return ['missing result']
+    if 'error' in got:
+        return ['error: %s' % got['error']]
+    if got.get('status_at_start') != expected['status_at_start']:
+        why.append('status %s != %s' % (got.get('status_at_start'), expected['status_at_start']))
+    fe, fg = expected['first_contact'], got.get('first_contact')
+    if (fe is None) != (fg is None):
+        why.append('first_contact %s, expected %s' % (fg, fe))
+    elif fe is not None and not abs(float(fe) - float(fg)) <= TIME_TOL:
+        why.append('first_contact |dt|=%.3g' % abs(float(fe) - float(fg)))
+    ie, ig = expected['intervals'], got.get('intervals') or []
+    if len(ie) != len(ig):
+        why.append('%d intervals, expected %d' % (len(ig), len(ie)))
+    else:
+        for pe, pg in zip(ie, ig):
+            for x, y in zip(pe, pg):
+                if not abs(float(x) - float(y)) <= TIME_TOL:
+                    why.append('interval endpoint |dt|=%.3g' % abs(float(x) - float(y)))
+    pe, pg = expected['contact_point'], got.get('contact_point')
+    size = max(max(case['a']['radii']), max(case['b']['radii']))
+    if (pe is None) != (pg is None):
+        why.append('contact_point %s, expected %s' % (pg, pe))
+    elif pe is not None:
+        d = sum((float(x) - float(y)) ** 2 for x, y in zip(pe, pg)) ** 0.5
+        if len(pg) != 3 or not d <= POINT_TOL * size:
+            why.append('contact_point |dp|/size=%.3g' % (d / size))
+    return why
 
 
 def _worker(args):

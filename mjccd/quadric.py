@@ -326,6 +326,14 @@ def static_status_pose(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
     b13 = kb * (r1 * w0 + r4 * w1 + r7 * w2)
     b23 = kb * (r2 * w0 + r5 * w1 + r8 * w2)
     b33 = kb * (t0 * w0 + t1 * w1 + t2 * w2 - 1.0)
+    # a centre inside the other ellipsoid (beyond rounding) decides overlap at once
+    if t0 * w0 + t1 * w1 + t2 * w2 < 1.0 - 1e-9:
+        return -1
+    ca0 = -(ra[0] * dx + ra[3] * dy + ra[6] * dz) / radii_a[0]
+    ca1 = -(ra[1] * dx + ra[4] * dy + ra[7] * dz) / radii_a[1]
+    ca2 = -(ra[2] * dx + ra[5] * dy + ra[8] * dz) / radii_a[2]
+    if ca0 * ca0 + ca1 * ca1 + ca2 * ca2 < 1.0 - 1e-9:
+        return -1
     ra_ = max(a0, a1, a2, ka)
     rows = (max(ra_, abs(b00) + abs(b01) + abs(b02) + abs(b03))
             * max(ra_, abs(b01) + abs(b11) + abs(b12) + abs(b13))

@@ -22,6 +22,7 @@ from tqdm import tqdm
 
 import mjccd
 from mjccd.bench import peers
+from mjccd.bench.report import write_section
 from mjccd.ccd import rigid_first_contact
 from mjccd.quadric import static_status_batch
 
@@ -185,19 +186,6 @@ def markdown(rows, peer_rows, command):
     return "\n".join(lines) + "\n"
 
 
-def _write_section(path, text):
-    """Replace the core section of the benchmarks page (or append it)."""
-    start, end = "<!-- bench core: begin -->", "<!-- bench core: end -->"
-    block = f"{start}\n{text}{end}\n"
-    old = open(path).read() if os.path.exists(path) else "# Benchmarks\n\n"
-    if start in old and end in old:
-        new = old[:old.index(start)] + block + old[old.index(end) + len(end) + 1:]
-    else:
-        new = old.rstrip("\n") + "\n\n" + block
-    with open(path, "w") as fh:
-        fh.write(new)
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="mjccd bench core", description=__doc__.splitlines()[0])
     parser.add_argument("--queries", type=int, default=200, help="rigid queries per set (default 200)")
@@ -214,6 +202,6 @@ def main(argv=None):
     text = markdown(rows, peer_rows, command)
     print(text)
     if args.markdown:
-        _write_section(args.markdown, text)
+        write_section(args.markdown, "core", text)
         print(f"written to {args.markdown}")
     return 0

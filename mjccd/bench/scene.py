@@ -21,6 +21,7 @@ import time
 import numba
 import numpy as np
 
+from mjccd.bench.report import write_section
 from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, Scene,
                          exact_pair, pairs_between, read_ticks)
 
@@ -481,7 +482,6 @@ def main(argv=None):
     text = markdown(b, t3, mj, command)
     print(text)
     if args.markdown:
-        with open(args.markdown, "w") as fh:
-            fh.write(text)
+        write_section(args.markdown, "scene", text)
         print(f"written to {args.markdown}")
     return 0

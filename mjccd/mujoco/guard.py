@@ -1,0 +1,252 @@
+"""Guarded stepping: roll a MuJoCo step back to the exact first contact so fast bodies cannot tunnel."""
+from dataclasses import dataclass
+
+import dm_env
+import mujoco
+import numpy as np
+
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.mujoco.motions import capture
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+@dataclass(frozen=True, eq=False)
+class GuardReport:
+    """What one guarded step did.
+
+    Attributes:
+        substeps: lengths in seconds of the MuJoCo steps that were kept; they sum to the timestep.
+            One entry when nothing was clamped.
+        clamps: the :class:`~mjccd.mujoco.StepContact` that caused each clamp, in order.
+        rollbacks: how many trial steps were thrown away and redone with a shorter timestep.
+        exhausted: True when ``max_rechecks`` clamps were spent and the rest of the step ran unguarded.
+    """
+
+    substeps: tuple
+    clamps: tuple
+    rollbacks: int
+    exhausted: bool
+
+
+def geom_ellipsoids(model, group=5):
+    """:class:`EllipsoidSet` made of the model's ellipsoid geoms in ``group`` (e.g. fitted bounding geoms).
+
+    Each geom becomes one ellipsoid fixed in its body at the geom's local pose.
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if not isinstance(group, (int, np.integer)) or not 0 <= int(group) < 6:
+        raise ValueError(f"group: expected an integer geom group in 0..5, got {group!r}")
+    ids = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID) & (model.geom_group == int(group)))
+    if len(ids) == 0:
+        raise ValueError(f"group: the model has no ellipsoid geom in group {int(group)}")
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"#{int(g)}" for g in ids]
+    return EllipsoidSet(bodies=[body_label(model, b) for b in model.geom_bodyid[ids]],
+                        radii=model.geom_size[ids].copy(), positions=model.geom_pos[ids].copy(),
+                        quaternions=model.geom_quat[ids].copy(), geoms=names)
+
+
+def _positive(value, field, *, integer=False, allow_zero=False):
+    ok = isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.integer, np.floating))
+    if not ok or isinstance(value, bool) or not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        kind = "integer" if integer else "number"
+        bound = ">= 0" if allow_zero else "> 0"
+        raise ValueError(f"{field}: expected a finite {kind} {bound}, got {value!r}")
+    return int(value) if integer else float(value)
+
+
+class GuardedStepper:
+    """MuJoCo stepping that never lets a guarded pair of bodies pass through each other within a step.
+
+    Each call takes an ordinary ``mj_step`` first.  When the exact CCD of that
+    step finds no new contact (no guarded pair that was separate at the start
+    touches during the step), the step is kept as it is, so the result is
+    bit-identical to plain stepping.  Otherwise the full physics state
+    (``mjSTATE_INTEGRATION``: positions, velocities, activations, warm start,
+    controls, applied forces, mocap, time) is restored, MuJoCo advances with a
+    reduced timestep to the first contact (a hair past it, ``overshoot`` of
+    the step, so that MuJoCo's own collision detection sees the touching pair
+    and its contact model takes over), takes one short step in contact
+    (``contact_step`` of the timestep, where the contact removes most of the
+    approach speed) and then the rest of the step, every piece checked again.  At most ``max_rechecks`` clamps per step; after
+    that the remaining time is one unguarded MuJoCo step (reported as
+    ``exhausted``).  Everything is deterministic.
+
+    Args:
+        model, data: the simulation; ``data`` is advanced by :meth:`step`.
+        ellipsoids: :class:`EllipsoidSet` bounding the guarded bodies (geoms that are not
+            ellipsoids are guarded through their bounding ellipsoids, so contact is caught early).
+        pairs: (body, body) names or ids to guard; default: every pair MuJoCo itself collides.
+        motion: "rigid", "affine" or "chain" (see :class:`~mjccd.mujoco.CCDMonitor`).
+        max_rechecks: clamps allowed per step (>= 0; 0 only reports, never clamps).
+        overshoot: how far past the contact instant a clamp goes, as a fraction of the timestep.
+        contact_step: length of the step taken right after a clamp, as a fraction of the timestep.
+        on_clamp: called with each :class:`~mjccd.mujoco.StepContact` that causes a clamp.
+    """
+
+    def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=8,
+                 overshoot=1e-3, contact_step=0.05, on_clamp=None):
+        self.monitor = CCDMonitor(model, data, ellipsoids, pairs=pairs, motion=motion,
+                                  report_overlapping=False)
+        self.max_rechecks = _positive(max_rechecks, "max_rechecks", integer=True, allow_zero=True)
+        self.overshoot = _positive(overshoot, "overshoot")
+        if self.overshoot >= 1.0:
+            raise ValueError(f"overshoot: expected a fraction of the timestep below 1, got {overshoot!r}")
+        self.contact_step = _positive(contact_step, "contact_step")
+        if self.contact_step > 1.0:
+            raise ValueError(f"contact_step: expected a fraction of the timestep up to 1, got {contact_step!r}")
+        if on_clamp is not None and not callable(on_clamp):
+            raise ValueError("on_clamp: expected a callable or None")
+        self.model, self.data, self.on_clamp = model, data, on_clamp
+        self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+        self.last_report = None
+        self.clamps_total = 0
+
+    @property
+    def pairs(self):
+        """(P, 2) guarded ellipsoid index pairs."""
+        return self.monitor.pairs
+
+    def step(self, nstep=1):
+        """Advance ``nstep`` timesteps, each guarded; the :class:`GuardReport` of the last one."""
+        n = _positive(nstep, "nstep", integer=True)
+        for _ in range(n):
+            self.guarded_step(lambda: mujoco.mj_step(self.model, self.data))
+        return self.last_report
+
+    def guarded_step(self, full_step, finish=None):
+        """One guarded timestep whose first trial is ``full_step()`` (e.g. dm-control's own step).
+
+        ``finish()``, when given, runs after a step that was clamped (dm-control
+        uses it to bring the derived quantities up to date with ``mj_step1``).
+        """
+        m, d = self.model, self.data
+        dt = float(m.opt.timestep)
+        remaining = length = dt
+        substeps, clamps = [], []
+        exhausted = False
+        first = True
+        rollbacks = 0
+        try:
+            while True:
+                mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
+                s0 = capture(d)
+                if first:
+                    full_step()
+                    first = False
+                else:
+                    m.opt.timestep = length
+                    mujoco.mj_step(m, d)
+                hit = self.monitor.check(s0, capture(d))
+                if hit is not None and len(clamps) < self.max_rechecks:
+                    h = hit.fraction * length + self.overshoot * dt
+                    clamps.append(hit)
+                    if h < length:
+                        # redo the trial: up to the contact, then a short step in contact
+                        mujoco.mj_setState(m, d, self._state0, STATE_SPEC)
+                        rollbacks += 1
+                        m.opt.timestep = h
+                        mujoco.mj_step(m, d)
+                        substeps.append(h)
+                        remaining -= h
+                        length = min(remaining, self.contact_step * dt)
+                        continue
+                elif hit is not None:
+                    exhausted = True
+                substeps.append(length)
+                if length >= remaining:
+                    break
+                remaining -= length
+                length = remaining
+        finally:
+            m.opt.timestep = dt
+        if rollbacks and finish is not None:
+            finish()
+        self.clamps_total += len(clamps)
+        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted)
+        if self.on_clamp is not None:
+            for c in clamps:
+                self.on_clamp(c)
+        return self.last_report
+
+
+class GuardedWrapper(dm_env.Environment):
+    """A dm-control environment whose physics substeps are guarded (see :class:`GuardedStepper`).
+
+    Args:
+        env: a ``dm_control.rl.control.Environment``.
+        ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
+        pairs, motion, max_rechecks, overshoot, contact_step, on_clamp: as in :class:`GuardedStepper`.
+
+    ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.
+    """
+
+    def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=8, overshoot=1e-3,
+                 contact_step=0.05, on_clamp=None, per="body"):
+        physics = getattr(env, "physics", None)
+        if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
+            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
+        self._env = env
+        model = physics.model.ptr
+        if ellipsoids is None:
+            from mjccd.fit import fit_model
+
+            ellipsoids = fit_model(model, per=per)
+        self.stepper = GuardedStepper(model, physics.data.ptr, ellipsoids, pairs=pairs, motion=motion,
+                                      max_rechecks=max_rechecks, overshoot=overshoot,
+                                      contact_step=contact_step, on_clamp=on_clamp)
+        self.last_reports = []
+
+    @property
+    def physics(self):
+        return self._env.physics
+
+    def reset(self):
+        self.last_reports = []
+        return self._env.reset()
+
+    def step(self, action):
+        physics = self._env.physics
+        stepper = self.stepper
+        if physics.model.ptr is not stepper.model:
+            raise ValueError("env: the physics model was reloaded; wrap the environment again")
+        stepper.data = stepper.monitor.data = physics.data.ptr
+        original = physics.step
+        reports = []
+
+        def finish():
+            mujoco.mj_step1(stepper.model, stepper.data)
+
+        def guarded(nstep=1):
+            for _ in range(int(nstep)):
+                reports.append(stepper.guarded_step(lambda: original(1), finish))
+
+        physics.step = guarded
+        try:
+            timestep = self._env.step(action)
+        finally:
+            del physics.step
+        self.last_reports = reports
+        return timestep
+
+    def observation_spec(self):
+        return self._env.observation_spec()
+
+    def action_spec(self):
+        return self._env.action_spec()
+
+    def reward_spec(self):
+        return self._env.reward_spec()
+
+    def discount_spec(self):
+        return self._env.discount_spec()
+
+    def close(self):
+        return self._env.close()
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name == "_env":
+            raise AttributeError(name)
+        return getattr(self._env, name)

@@ -1,0 +1,219 @@
+"""Guarded stepping: no tunneling, bit-identical when nothing is predicted, no stale state after rollbacks."""
+import collections
+
+import mujoco
+import numpy as np
+import pytest
+
+from mjccd.fit import fit_model
+from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, geom_ellipsoids
+
+WALL_HALF, BALL = 0.01, 0.02
+
+# A ball thrown along +x at a 2 cm ellipsoid wall.  The ball carries a motor with a
+# filtered activation and the model has sensors, so that act, warm starts and
+# sensordata all take part in the state comparisons.
+WALL = """
+<mujoco>
+  <option timestep="{dt!r}"/>
+  <worldbody>
+    <body name="wall" pos="0 0 1">
+      <geom name="wall" type="ellipsoid" size="{half} 1 1" solref="0.001 1"/>
+    </body>
+    <body name="ball" pos="{x0!r} 0 1">
+      <freejoint name="ball"/>
+      <geom name="ball" type="sphere" size="{r}" density="1000" solref="0.001 1"/>
+      <site name="ball"/>
+    </body>
+  </worldbody>
+  <actuator>
+    <general name="push" site="ball" gear="0 0 1 0 0 0" dyntype="filter" dynprm="0.02"/>
+  </actuator>
+  <sensor>
+    <accelerometer site="ball"/>
+    <velocimeter site="ball"/>
+    <framepos objtype="site" objname="ball"/>
+    <actuatorfrc actuator="push"/>
+  </sensor>
+</mujoco>
+"""
+
+
+def wall_model(dt, x0=-0.5):
+    return mujoco.MjModel.from_xml_string(WALL.format(dt=dt, half=WALL_HALF, r=BALL, x0=x0))
+
+
+def thrown(model, speed, ctrl=0.0):
+    data = mujoco.MjData(model)
+    data.qvel[0] = speed
+    data.ctrl[0] = ctrl
+    mujoco.mj_forward(model, data)
+    return data
+
+
+def inside_wall(qpos):
+    """Ball centre inside the wall ellipsoid, or beyond its mid-plane."""
+    x, y, z = qpos[0], qpos[1], qpos[2] - 1.0
+    return x >= 0.0 or (x / WALL_HALF) ** 2 + y ** 2 + z ** 2 <= 1.0
+
+
+def full_state(model, data):
+    """Everything a later step depends on or a user reads back."""
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    state = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state, spec)
+    return np.concatenate([state, data.sensordata, data.qacc, data.act_dot, data.actuator_force])
+
+
+@pytest.mark.parametrize("dt,speed", [(0.002, 50.0), (0.002, 200.0), (0.005, 200.0), (0.01, 100.0),
+                                      (0.01, 200.0)])
+def test_guard_stops_tunneling_through_thin_wall(dt, speed):
+    model = wall_model(dt)
+    steps = int(round(0.1 / dt))
+    plain = thrown(model, speed)
+    for _ in range(steps):
+        mujoco.mj_step(model, plain)
+    assert plain.qpos[0] > 1.0, "plain MuJoCo should tunnel in this case"
+
+    data = thrown(model, speed)
+    guard = GuardedStepper(model, data, fit_model(model))
+    xs = []
+    for _ in range(steps):
+        report = guard.step()
+        xs.append(data.qpos[:3].copy())
+        assert not inside_wall(data.qpos), f"ball inside the wall at t = {data.time}"
+        assert np.isclose(sum(report.substeps), dt, rtol=0, atol=1e-15)
+    assert guard.clamps_total >= 1
+    assert model.opt.timestep == dt  # restored
+    assert max(x[0] for x in xs) < -BALL + 0.5 * BALL  # bounced back, never more than half a radius deep
+    assert data.qvel[0] <= 0.0
+
+
+def test_no_predicted_contact_is_bit_identical():
+    model = wall_model(0.004)
+    plain = thrown(model, -3.0, ctrl=0.5)
+    guarded = thrown(model, -3.0, ctrl=0.5)
+    guard = GuardedStepper(model, guarded, fit_model(model))
+    for _ in range(150):
+        mujoco.mj_step(model, plain)
+        report = guard.step()
+        assert report.clamps == () and report.substeps == (0.004,)
+    assert np.array_equal(full_state(model, plain), full_state(model, guarded))
+
+
+def test_rollback_leaves_no_stale_state():
+    dt = 0.005
+    model = wall_model(dt)
+    guarded = thrown(model, 120.0, ctrl=2.0)
+    guard = GuardedStepper(model, guarded, fit_model(model))
+    replay = thrown(model, 120.0, ctrl=2.0)
+    rolled = 0
+    for k in range(40):
+        ctrl = np.sin(0.3 * k)
+        guarded.ctrl[0] = replay.ctrl[0] = ctrl
+        report = guard.step()
+        rolled += report.rollbacks
+        # a plain run that stops at the same instants
+        for h in report.substeps:
+            model.opt.timestep = h
+            mujoco.mj_step(model, replay)
+        model.opt.timestep = dt
+        assert np.array_equal(full_state(model, guarded), full_state(model, replay)), f"step {k}"
+    assert rolled >= 1
+    assert guarded.act[0] != 0.0 and np.any(guarded.qacc_warmstart != 0.0)
+
+
+def test_max_rechecks_zero_only_reports():
+    model = wall_model(0.002)
+    data = thrown(model, 200.0)
+    seen = []
+    guard = GuardedStepper(model, data, fit_model(model), max_rechecks=0, on_clamp=seen.append)
+    for _ in range(50):
+        guard.step()
+    assert data.qpos[0] > 0.0 and seen == [] and guard.clamps_total == 0
+
+
+def test_clamp_reports_contact():
+    model = wall_model(0.01)
+    data = thrown(model, 100.0)
+    seen = []
+    guard = GuardedStepper(model, data, fit_model(model), on_clamp=seen.append)
+    report = None
+    while not seen:
+        report = guard.step()
+    c = seen[0]
+    assert set(c.bodies) == {"wall", "ball"} and c.status_at_start == "separate"
+    # first contact when the ball centre is at x = -(half + radius)
+    assert report.rollbacks == 1 and len(report.substeps) >= 2
+    assert abs(c.point[0] + WALL_HALF) < 1e-6
+
+
+def test_bad_arguments():
+    model = wall_model(0.002)
+    data = mujoco.MjData(model)
+    ell = fit_model(model)
+    with pytest.raises(ValueError, match="max_rechecks: expected a finite integer >= 0, got -1"):
+        GuardedStepper(model, data, ell, max_rechecks=-1)
+    with pytest.raises(ValueError, match="overshoot"):
+        GuardedStepper(model, data, ell, overshoot=2.0)
+    with pytest.raises(ValueError, match="contact_step"):
+        GuardedStepper(model, data, ell, contact_step=0.0)
+    with pytest.raises(ValueError, match="nstep"):
+        GuardedStepper(model, data, ell).step(0)
+    with pytest.raises(ValueError, match="pairs"):
+        GuardedStepper(model, data, ell, pairs=[("ball", "nowhere")])
+    with pytest.raises(ValueError, match="group: the model has no ellipsoid geom in group 5"):
+        geom_ellipsoids(model, 5)
+
+
+def test_geom_ellipsoids_reads_group():
+    ell = geom_ellipsoids(wall_model(0.002), 0)
+    assert ell.bodies == ("wall",) and np.allclose(ell.radii, [[WALL_HALF, 1, 1]])
+
+
+# ------------------------------------------------------------ dm-control
+
+
+def _env(speed, control_timestep=0.02):
+    from dm_control import mujoco as dm_mujoco
+    from dm_control.rl import control
+    from dm_control.suite import base
+
+    class Throw(base.Task):
+        def initialize_episode(self, physics):
+            physics.data.qvel[0] = speed
+
+        def get_observation(self, physics):
+            return collections.OrderedDict(x=physics.data.qpos[:3].copy())
+
+        def get_reward(self, physics):
+            return 0.0
+
+    physics = dm_mujoco.Physics.from_xml_string(WALL.format(dt=0.004, half=WALL_HALF, r=BALL, x0=-0.5))
+    return control.Environment(physics, Throw(random=0), control_timestep=control_timestep, time_limit=1.0)
+
+
+def test_dm_control_wrapper_guards_substeps():
+    plain, wrapped = _env(150.0), GuardedWrapper(_env(150.0))
+    plain.reset()
+    wrapped.reset()
+    for _ in range(5):
+        a = plain.step(np.zeros(1))
+        b = wrapped.step(np.zeros(1))
+    assert a.observation["x"][0] > 0.0
+    assert b.observation["x"][0] < -BALL
+    assert any(r.clamps for r in wrapped.last_reports) or wrapped.stepper.clamps_total >= 1
+    assert len(wrapped.last_reports) == 5
+
+
+def test_dm_control_wrapper_without_contact_is_identical():
+    plain, wrapped = _env(-2.0), GuardedWrapper(_env(-2.0))
+    plain.reset()
+    wrapped.reset()
+    for k in range(10):
+        a = plain.step(np.array([np.cos(k)]))
+        b = wrapped.step(np.array([np.cos(k)]))
+        assert np.array_equal(a.observation["x"], b.observation["x"])
+    pm, pd = plain.physics.model.ptr, plain.physics.data.ptr
+    wm, wd = wrapped.physics.model.ptr, wrapped.physics.data.ptr
+    assert np.array_equal(full_state(pm, pd), full_state(wm, wd))

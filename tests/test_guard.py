@@ -217,3 +217,16 @@ def test_dm_control_wrapper_without_contact_is_identical():
     pm, pd = plain.physics.model.ptr, plain.physics.data.ptr
     wm, wd = wrapped.physics.model.ptr, wrapped.physics.data.ptr
     assert np.array_equal(full_state(pm, pd), full_state(wm, wd))
+
+
+def test_clamp_goes_to_entry_not_exit():
+    # a case where the batched scene check reports the exit instant of the pair;
+    # the guard must still clamp at the entry (centre at x = -(half + radius))
+    x0, v, dt = -0.4726076625357091, 190.7914685505548, 0.01
+    model = wall_model(dt, x0=x0)
+    data = thrown(model, v)
+    guard = GuardedStepper(model, data, fit_model(model))
+    report = guard.step()
+    entry = (-(WALL_HALF + BALL) - x0) / (v * dt)
+    assert len(report.clamps) == 1 and abs(report.clamps[0].fraction - entry) < 1e-6
+    assert data.qvel[0] < 0.0 and not inside_wall(data.qpos)

@@ -1,0 +1,236 @@
+"""Tunneling scenarios: a fast ball at a thin wall, balls in a jerked cup, a punch through a head."""
+import pathlib
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+
+from mjccd.fit import fit_model
+from mjccd.mujoco.guard import geom_ellipsoids
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+# Contacts of the guarded geoms use the stiffest time constant MuJoCo allows at the running timestep
+# (refsafe raises 0.001 s to 2 x timestep); with the default 0.02 s even a detected contact cannot stop
+# a ball at 100 m/s inside a 2 cm wall, whatever the timestep.
+STIFF = 'solref="0.001 1"'
+
+WALL_HALF = 0.01
+BALL_RADIUS = 0.02
+
+
+def wall_xml(timestep, speed):
+    """(a) A 2 cm ball flying at ``speed`` m/s along +x at an ellipsoid wall 2 cm thick (1 m half-height)."""
+    return f"""
+<mujoco model="wall">
+  <option timestep="{timestep!r}" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="wall" pos="0 0 1">
+      <geom name="wall" type="ellipsoid" size="{WALL_HALF} 1 1" {STIFF}/>
+    </body>
+    <body name="ball" pos="-0.5 0 1">
+      <freejoint name="ball"/>
+      <geom name="ball" type="sphere" size="{BALL_RADIUS}" density="1000" {STIFF}/>
+    </body>
+  </worldbody>
+  <keyframe><key name="throw" qvel="{speed!r} 0 0 0 0 0"/></keyframe>
+</mujoco>"""
+
+
+class Scenario:
+    """One simulated situation: a model, its start state, the guarded pairs and a tunneling test."""
+
+    name = ""
+    duration = 0.0
+
+    def __init__(self, timestep, **params):
+        self.timestep = timestep
+        self.params = params
+        self.model = self.build()
+
+    def build(self):
+        raise NotImplementedError
+
+    def reset(self, data, rng=None):
+        """Put ``data`` into the start state; ``rng`` jitters it (start position, speed) for repeated runs."""
+        mujoco.mj_resetDataKeyframe(self.model, data, 0)
+        if rng is not None:
+            data.qpos[0] += rng.uniform(-0.1, 0.1)
+            data.qvel[0] *= rng.uniform(0.9, 1.1)
+        mujoco.mj_forward(self.model, data)
+
+    def ellipsoids(self):
+        return fit_model(self.model)
+
+    pairs = None
+
+    def control(self, data):
+        """Set controls or mocap before a step (nothing by default)."""
+
+    def tunneled(self, data):
+        """True when the current state shows a body gone through the obstacle."""
+        raise NotImplementedError
+
+
+class Wall(Scenario):
+    """(a) Ball at a thin wall: tunneled when the ball centre is ever beyond the wall's mid-plane."""
+
+    name = "wall"
+    duration = 0.1
+
+    def build(self):
+        return mujoco.MjModel.from_xml_string(wall_xml(self.timestep, self.params["speed"]))
+
+    def tunneled(self, data):
+        return data.qpos[0] > 0.0
+
+
+def cup_xml(timestep, n_balls=3):
+    """(b) Balls resting in a thin-walled heavy cup on a slide joint; the cup is jerked sideways."""
+    balls = "\n".join(
+        f'''    <body name="ball{k}" pos="{-0.02 + 0.02 * k!r} 0 {0.035 + 0.045 * k!r}">
+      <freejoint/>
+      <geom name="ball{k}" type="sphere" size="0.02" density="1000" {STIFF}/>
+    </body>''' for k in range(n_balls))
+    # cup: a floor and four thin side walls, all ellipsoids so the guard is exact
+    return f"""
+<mujoco model="cup">
+  <option timestep="{timestep!r}"/>
+  <worldbody>
+    <body name="cup" pos="0 0 0">
+      <joint name="cup" type="slide" axis="1 0 0"/>
+      <inertial pos="0 0 0" mass="1000" diaginertia="10 10 10"/>
+      <geom name="cup_floor" type="ellipsoid" size="0.09 0.09 0.008" pos="0 0 0" {STIFF}/>
+      <geom name="cup_px" type="ellipsoid" size="0.006 0.09 0.09" pos="0.07 0 0.08" {STIFF}/>
+      <geom name="cup_nx" type="ellipsoid" size="0.006 0.09 0.09" pos="-0.07 0 0.08" {STIFF}/>
+      <geom name="cup_py" type="ellipsoid" size="0.09 0.006 0.09" pos="0 0.07 0.08" {STIFF}/>
+      <geom name="cup_ny" type="ellipsoid" size="0.09 0.006 0.09" pos="0 -0.07 0.08" {STIFF}/>
+    </body>
+{balls}
+  </worldbody>
+</mujoco>"""
+
+
+class Cup(Scenario):
+    """(b) A cup jerked along +x at ``speed`` m/s for 30 ms, then back: tunneled when a ball leaves the cup."""
+
+    name = "cup"
+    duration = 0.3
+
+    def build(self):
+        return mujoco.MjModel.from_xml_string(cup_xml(self.timestep))
+
+    def reset(self, data, rng=None):
+        mujoco.mj_resetData(self.model, data)
+        self._speed = self.params["speed"] * (1.0 if rng is None else rng.uniform(0.9, 1.1))
+        if rng is not None:
+            data.qpos[1:].reshape(-1, 7)[:, :2] += rng.uniform(-0.01, 0.01, (self.model.nbody - 2, 2))
+        mujoco.mj_forward(self.model, data)
+
+    def ellipsoids(self):
+        return fit_model(self.model, per="geom")
+
+    def _cup_v(self, t):
+        return self._speed if t < 0.03 else (-self._speed * 0.15 if t < 0.23 else 0.0)
+
+    def control(self, data):
+        """Prescribe the cup's velocity (it is heavy enough that the balls barely slow it)."""
+        data.qvel[0] = self._cup_v(data.time)
+
+    def tunneled(self, data):
+        balls = data.qpos[1:].reshape(-1, 7)[:, :2] - np.array([data.qpos[0], 0.0])
+        return bool(np.any(np.abs(balls) > 0.07))
+
+
+BOXING = ROOT / "models" / "boxing.xml"
+
+
+def boxing_model(timestep):
+    """The boxing scene made physical: b's head and a's right arm collide through their bounding ellipsoids.
+
+    The bodies are weightless of gravity and held by their joints' damping; a's
+    right shoulder, elbow and wrist are free to swing, everything else keeps
+    its pose (the limb capsules and the other bounds stay non-colliding).
+    """
+    tree = ET.parse(BOXING)
+    root = tree.getroot()
+    root.find("option").set("timestep", repr(timestep))
+    root.find("option").set("gravity", "0 0 0")
+    colliding = {"b_Head_bound": (1, 2), "a_RightForeArm_bound": (2, 1), "a_RightHand_bound": (2, 1)}
+    for geom in root.iter("geom"):
+        name = geom.get("name", "")
+        if name in colliding:
+            ct, ca = colliding[name]
+            geom.set("contype", str(ct))
+            geom.set("conaffinity", str(ca))
+            geom.set("solref", "0.001 1")
+            geom.set("mass", "0.5" if name.startswith("a_") else "4")
+    for joint in root.iter("joint"):
+        joint.set("damping", "0" if joint.get("name", "") == "a_RightArm" else "1e6")
+    for parent in root.iter("body"):
+        for fj in parent.findall("freejoint"):
+            parent.remove(fj)
+    model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
+    # bring b within reach: its head as far from a's right shoulder as a's fist, on the same line as before
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    shoulder = data.xpos[model.body("a_RightArm").id]
+    head = data.geom_xpos[model.geom("b_Head_bound").id]
+    reach = np.linalg.norm(data.geom_xpos[model.geom("a_RightHand_bound").id] - shoulder)
+    gap = head - shoulder
+    model.body_pos[model.body("b_Hips").id] -= gap * (1.0 - reach / np.linalg.norm(gap))
+    return model
+
+
+class Boxing(Scenario):
+    """(c) a's right arm swung about the shoulder at ``speed`` (fist m/s) through b's head."""
+
+    name = "boxing"
+    duration = 0.15
+
+    def build(self):
+        return boxing_model(self.timestep)
+
+    def reset(self, data, rng=None):
+        m = self.model
+        mujoco.mj_resetData(m, data)
+        mujoco.mj_forward(m, data)
+        self._aim(data, 1.0 if rng is None else rng.uniform(0.9, 1.1))
+
+    def _aim(self, data, jitter):
+        """Turn a's right shoulder so the fist heads for b's head, with the requested fist speed."""
+        m = self.model
+        jnt = m.joint("a_RightArm")
+        dof = m.jnt_dofadr[jnt.id]
+        body = m.jnt_bodyid[jnt.id]
+        hand = m.body("a_RightHand").id
+        head = m.body("b_Head").id
+        shoulder = data.xpos[body]
+        arm = data.xpos[hand] - shoulder
+        target = data.geom_xpos[m.geom("b_Head_bound").id] - shoulder
+        axis = np.cross(arm, target)
+        axis /= np.linalg.norm(axis)
+        omega = jitter * self.params["speed"] / np.linalg.norm(arm)
+        # angular velocity of a ball joint is expressed in the child body's frame
+        R = data.xmat[body].reshape(3, 3)
+        data.qvel[dof:dof + 3] = R.T @ (axis * omega)
+        self._axis_world, self._shoulder = axis, shoulder.copy()
+        self._touched = False
+        mujoco.mj_forward(m, data)
+
+    def ellipsoids(self):
+        return geom_ellipsoids(self.model, 5)
+
+    pairs = (("a_RightForeArm", "b_Head"), ("a_RightHand", "b_Head"))
+
+    def tunneled(self, data):
+        """The fist swung past the head's centre before MuJoCo ever saw the arm touch the head."""
+        m = self.model
+        head = m.geom("b_Head_bound").id
+        for c in data.contact[:data.ncon]:
+            if head in (c.geom1, c.geom2):
+                self._touched = True
+        head_c = data.geom_xpos[head] - self._shoulder
+        fist = data.geom_xpos[m.geom("a_RightHand_bound").id] - self._shoulder
+        past = np.cross(head_c, fist) @ self._axis_world > 0.0 and fist @ head_c > 0.0
+        return bool(past and not self._touched)

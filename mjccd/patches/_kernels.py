@@ -429,18 +429,14 @@ def frame(p0, p1, t, corners, out):
 
 
 @_jit
-def euclidean(hom, n, rel, p0, p1, shift):
-    """Euclidean control points at t = 0, 1 and their contour shifts from homogeneous rows."""
+def euclidean(hom, n, margin, p0, p1, shift):
+    """Euclidean control points at t = 0, 1 from homogeneous rows; every line shifts by margin."""
     for i in range(n):
         w = hom[i, 3]
-        m = 0.0
         for c in range(3):
-            x0 = hom[i, c] / w
-            x1 = hom[i, 4 + c] / w
-            p0[i, c] = x0
-            p1[i, c] = x1
-            m = max(m, abs(x0), abs(x1))
-        shift[i] = rel * m
+            p0[i, c] = hom[i, c] / w
+            p1[i, c] = hom[i, 4 + c] / w
+        shift[i] = margin
 
 
 @_jit
@@ -546,18 +542,45 @@ def _grow1(a, cap):
 # ---------------------------------------------------------------------------- heap
 @_jit
 def _less(hf, i, j):
-    return hf[i, 0] < hf[j, 0] or (hf[i, 0] == hf[j, 0] and hf[i, 2] < hf[j, 2])
+    """Order: time bucket of the lower end, then smaller width (deeper first), then time."""
+    if hf[i, 3] != hf[j, 3]:
+        return hf[i, 3] < hf[j, 3]
+    if hf[i, 2] != hf[j, 2]:
+        return hf[i, 2] < hf[j, 2]
+    return hf[i, 0] < hf[j, 0]
 
 
 @_jit
 def _swap(hf, hi, i, j):
-    for c in range(3):
+    for c in range(4):
         x = hf[i, c]
         hf[i, c] = hf[j, c]
         hf[j, c] = x
+    for c in range(3):
         y = hi[i, c]
         hi[i, c] = hi[j, c]
         hi[j, c] = y
+
+
+@_jit
+def _heap_min_time(hf, nh, t):
+    """Smallest lower end among t and the queued nodes: a valid bound on the first contact."""
+    for k in range(nh):
+        if hf[k, 0] < t:
+            t = hf[k, 0]
+    return t
+
+
+@_jit
+def _scale(roots):
+    """Largest absolute Euclidean coordinate of a set of primitives over the step."""
+    m = 0.0
+    for k in range(roots.shape[0]):
+        for i in range(roots.shape[1]):
+            w = roots[k, i, 3]
+            for c in range(3):
+                m = max(m, abs(roots[k, i, c] / w), abs(roots[k, i, 4 + c] / w))
+    return m
 
 
 @_jit
@@ -654,9 +677,13 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
         regB[i, 1] = 0.0
         regB[i, 2] = 1.0 if kind_b != 0 else 0.0
         regB[i, 3] = 1.0
-    # heap: floats (t_lo, t_hi, width), ints (pool a, pool b, root pair)
+    # heap: floats (t_lo, t_hi, width, bucket), ints (pool a, pool b, root pair); lower
+    # ends within one time quantum (delta) count as ties and deeper nodes go first, so
+    # nearly simultaneous candidates (face contact) are refined depth-first
+    quantum = delta
+    margin = rel * max(_scale(roots_a), _scale(roots_b))
     capH = 256
-    hf = np.empty((capH, 3))
+    hf = np.empty((capH, 4))
     hi = np.empty((capH, 3), np.int64)
     nh = 0
     peak = 0
@@ -664,9 +691,9 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
     for p in range(pairs.shape[0]):
         ia = pairs[p, 0]
         ib = pairs[p, 1]
-        euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+        euclidean(poolA[ia], na, margin, eA0[0], eA1[0], shA[0])
         frame(eA0[0], eA1[0], 0.0, corners_a, frA[0])
-        euclidean(poolB[ib], nb, rel, eB0[0], eB1[0], shB[0])
+        euclidean(poolB[ib], nb, margin, eB0[0], eB1[0], shB[0])
         frame(eB0[0], eB1[0], 0.0, corners_b, frB[0])
         if method == OURS:
             lo, up = intersection_period(eA0[0], eA1[0], shA[0], frA[0], na, eB0[0], eB1[0],
@@ -686,6 +713,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
             hf[nh, 0] = lo
             hf[nh, 1] = up
             hf[nh, 2] = max(regA[ia, 2], regB[ib, 2])
+            hf[nh, 3] = np.floor(lo / quantum)
             hi[nh, 0] = ia
             hi[nh, 1] = ib
             hi[nh, 2] = p
@@ -719,8 +747,9 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
         pr = hi[0, 2]
         nh -= 1
         if nh > 0:
-            for c in range(3):
+            for c in range(4):
                 hf[0, c] = hf[nh, c]
+            for c in range(3):
                 hi[0, c] = hi[nh, c]
             _sift_down(hf, hi, nh)
         iterations += 1
@@ -732,7 +761,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
             width = max(width, tu - tl)
         if width < delta:
             # accepted: world point = centroid of A's control points at tl
-            euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+            euclidean(poolA[ia], na, margin, eA0[0], eA1[0], shA[0])
             x = 0.0
             y = 0.0
             z = 0.0
@@ -752,7 +781,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                     distinct = False
                     break
             if distinct:
-                points_out[found, 0] = tl
+                points_out[found, 0] = _heap_min_time(hf, nh, tl) if found == 0 else tl
                 region_point(kind_a, regA[ia], points_out[found], 1)
                 region_point(kind_b, regB[ib], points_out[found], 3)
                 points_out[found, 5] = x
@@ -760,7 +789,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                 points_out[found, 7] = z
                 points_out[found, 8] = pr
                 if found == 0:
-                    t_first = tl
+                    t_first = points_out[0, 0]
                 found += 1
                 status = CONTACT
             if not manifold or found >= max_points:
@@ -777,7 +806,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
             continue
         if found > 0:
             # manifold mode: drop nodes whose A part lies inside a found point's ball
-            euclidean(poolA[ia], na, rel, eA0[0], eA1[0], shA[0])
+            euclidean(poolA[ia], na, margin, eA0[0], eA1[0], shA[0])
             covered = False
             for q in range(found):
                 far = 0.0
@@ -808,13 +837,13 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
         for c in range(ca_n):
             _subdivide(sub_a[c], poolA[ia], na, chA[c])
             _child_region(kind_a, regA[ia], c, rgA[c])
-            euclidean(chA[c], na, rel, eA0[c], eA1[c], shA[c])
+            euclidean(chA[c], na, margin, eA0[c], eA1[c], shA[c])
             frame(eA0[c], eA1[c], tl, corners_a, frA[c])
             idxA[c] = ia if ca_n == 1 else -1
         for c in range(cb_n):
             _subdivide(sub_b[c], poolB[ib], nb, chB[c])
             _child_region(kind_b, regB[ib], c, rgB[c])
-            euclidean(chB[c], nb, rel, eB0[c], eB1[c], shB[c])
+            euclidean(chB[c], nb, margin, eB0[c], eB1[c], shB[c])
             frame(eB0[c], eB1[c], tl, corners_b, frB[c])
             idxB[c] = ib if cb_n == 1 else -1
         full = False
@@ -879,6 +908,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                     hf[nh, 0] = lo
                     hf[nh, 1] = up
                     hf[nh, 2] = max(rgA[ca, 2], rgB[cb, 2])
+                    hf[nh, 3] = np.floor(lo / quantum)
                     hi[nh, 0] = idxA[ca]
                     hi[nh, 1] = idxB[cb]
                     hi[nh, 2] = pr
@@ -904,10 +934,10 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
             # put the popped node's bound back as the answer's lower bound
             status = MAX_NODES
             if found == 0:
-                points_out[0, 0] = min(tl, hf[0, 0]) if nh > 0 else tl
+                points_out[0, 0] = _heap_min_time(hf, nh, tl)
             break
     if status == MAX_ITERATIONS and found == 0:
-        points_out[0, 0] = hf[0, 0]
+        points_out[0, 0] = _heap_min_time(hf, nh, INF)
     info_out[0] = status
     info_out[1] = iterations
     info_out[2] = found

@@ -1,0 +1,316 @@
+"""``mjccd bench patches``: the Table 1 and Table 3 protocols of Chen et al. 2024.
+
+Table 1: random moving patch pairs (triangular and quadrilateral, order 1-3), average
+milliseconds per case for Trad./Ours x AABB/OBB x delta, colliding pairs, speed-ups.
+Table 3: the vertex-face / edge-edge query sets in ``data/ccd-queries`` with ground
+truth: mean and median microseconds per query, false positives and false negatives,
+next to ipctk's Tight-Inclusion CCD when that package is installed.
+"""
+import argparse
+import platform
+import os
+import re
+import sys
+import time
+
+import numpy as np
+
+from . import _kernels as K
+from . import queries as Q
+from .primitives import Patch
+from .solver import first_contact
+
+PAPER_T1_OURS_OBB = {  # paper Table 1, "Ours (OBB)" column [ms] for delta 1e-4, 1e-5, 1e-6
+    ("triangle", 1): (4.26, 5.51, 6.68), ("triangle", 2): (22.40, 42.67, 90.87),
+    ("triangle", 3): (35.98, 66.73, 131.30), ("quad", 1): (5.00, 9.72, 22.13),
+    ("quad", 2): (19.30, 32.50, 62.12), ("quad", 3): (27.17, 44.71, 79.40)}
+
+
+def table1_case(rng, kind, order):
+    """One random case of the Table 1 protocol.
+
+    Control points p and velocities v of both patches are uniform in [-1, 1]; a random
+    direction d (same distribution) is added to p of patch 1 and v of patch 2 and
+    subtracted from p of patch 2 and v of patch 1, which makes collisions likely.
+    Time runs over [0, 1].
+    """
+    n = (order + 1) ** 2 if kind == "quad" else (order + 1) * (order + 2) // 2
+    p1, p2, v1, v2 = (rng.uniform(-1.0, 1.0, (n, 3)) for _ in range(4))
+    d = rng.uniform(-1.0, 1.0, 3)
+    p1 += d
+    v2 += d
+    p2 -= d
+    v1 -= d
+    if kind == "quad":
+        shape = (order + 1, order + 1, 3)
+        return (Patch.quad(p1.reshape(shape), velocities=v1.reshape(shape)),
+                Patch.quad(p2.reshape(shape), velocities=v2.reshape(shape)))
+    return Patch.triangle(p1, velocities=v1), Patch.triangle(p2, velocities=v2)
+
+
+def _progress(total, desc, enabled):
+    if not enabled:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a dependency
+        return None
+    return tqdm(total=total, desc=desc, leave=False, file=sys.stderr)
+
+
+def _fmt(x, digits=2):
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "-"
+    if x >= 1000:
+        return f"{x:,.0f}"
+    return f"{x:.{digits}f}"
+
+
+# ------------------------------------------------------------------------ table 1
+def run_table1(args):
+    """Average ms per case; returns (markdown lines, raw rows)."""
+    configs = [(m, inc) for m in args.methods for inc in args.inclusions]
+    lines = []
+    header = ["patch", "order", "cases", "CP"]
+    for m, inc in configs:
+        for d in args.deltas:
+            header.append(f"{'Trad.' if m == 'trad' else 'Ours'} ({inc.upper()}) {d:g}")
+    if "trad" in args.methods and "ours" in args.methods:
+        for inc in args.inclusions:
+            for d in args.deltas:
+                header.append(f"speed-up {inc.upper()} {d:g}")
+    lines.append("| " + " | ".join(header) + " |")
+    lines.append("|" + "---|" * len(header))
+    raw = []
+    for kind in args.kinds:
+        for order in args.orders:
+            rng = np.random.default_rng(args.seed)
+            cases = [table1_case(rng, kind, order) for _ in range(args.cases)]
+            first_contact(*cases[0], delta=1e-2)  # compile / load the kernels
+            first_contact(*cases[0], delta=1e-2, method="trad")
+            times = {}
+            capped = {}
+            hits = None
+            bar = _progress(len(configs) * len(args.deltas) * len(cases),
+                            f"{kind} {order}", args.progress)
+            for m, inc in configs:
+                for d in args.deltas:
+                    ts, cp, cap = [], 0, 0
+                    limit = args.trad_max_iterations if m == "trad" else 10_000_000
+                    for a, b in cases:
+                        t0 = time.perf_counter()
+                        c = first_contact(a, b, method=m, inclusion=inc, delta=d,
+                                          max_iterations=limit)
+                        ts.append(time.perf_counter() - t0)
+                        cp += c is not None
+                        cap += c is not None and c.status != "converged"
+                        if bar is not None:
+                            bar.update(1)
+                    times[m, inc, d] = 1e3 * float(np.mean(ts))
+                    capped[m, inc, d] = cap
+                    if m == "ours" and inc == args.inclusions[-1] and d == args.deltas[-1]:
+                        hits = cp
+            if bar is not None:
+                bar.close()
+            row = [kind, str(order), str(len(cases)), str(hits)]
+            for m, inc in configs:
+                for d in args.deltas:
+                    cell = _fmt(times[m, inc, d])
+                    if capped[m, inc, d]:
+                        cell += f" ({capped[m, inc, d]} capped)"
+                    row.append(cell)
+            if "trad" in args.methods and "ours" in args.methods:
+                for inc in args.inclusions:
+                    for d in args.deltas:
+                        s = times["trad", inc, d] / times["ours", inc, d]
+                        row.append(("≥" if capped["trad", inc, d] else "") + f"{s:.1f}×")
+            lines.append("| " + " | ".join(row) + " |")
+            raw.append({"kind": kind, "order": order, "cp": hits, "times": times,
+                        "capped": capped})
+            print(lines[-1], flush=True)
+    return lines, raw
+
+
+# ------------------------------------------------------------------------ table 3
+def _time_queries(kind, vertices, method, inclusion, delta, progress):
+    """Per-query wall time through one compiled call each, plus the batch mean."""
+    a, b = Q.query_primitives(kind, vertices)
+    ka, ca, sa, kb, cb, sb = Q.query_kernel_args(kind)
+    pairs = np.zeros((1, 2), np.int64)
+    pts = np.empty((1, 9))
+    info = np.zeros(4, np.int64)
+    m = K.OURS if method == "ours" else K.TRAD
+    obb = inclusion == "obb"
+    q = len(vertices)
+    hit = np.zeros(q, bool)
+    per = np.empty(q)
+    search = K.search
+    bar = _progress(q, f"{kind} {method} {inclusion}", progress)
+    for i in range(q):
+        ai, bi = a[i], b[i]
+        t0 = time.perf_counter()
+        search(ka, ca, sa, ai, kb, cb, sb, bi, pairs, m, obb, delta, 1.0,
+               Q.DEFAULT_MARGIN, Q.DEFAULT_TIME_MARGIN, 1_000_000, 1 << 21, False, 0.0, 0.0,
+               pts, info)
+        per[i] = time.perf_counter() - t0
+        hit[i] = info[0] != K.NO_CONTACT
+        if bar is not None and i % 256 == 0:
+            bar.update(min(256, q - i))
+    if bar is not None:
+        bar.close()
+    t0 = time.perf_counter()
+    toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta)
+    batch_mean = (time.perf_counter() - t0) / q
+    assert np.array_equal(np.isfinite(toi), hit)
+    return hit, per, batch_mean
+
+
+def _time_ipctk(kind, vertices):
+    import ipctk
+    ccd = ipctk.TightInclusionCCD()
+    q = len(vertices)
+    hit = np.zeros(q, bool)
+    per = np.empty(q)
+    fn = ccd.point_triangle_ccd if kind == "vf" else ccd.edge_edge_ccd
+    rows = [[np.ascontiguousarray(v) for v in query] for query in vertices]
+    for i, r in enumerate(rows):
+        t0 = time.perf_counter()
+        ok, _ = fn(*r)
+        per[i] = time.perf_counter() - t0
+        hit[i] = ok
+    return hit, per
+
+
+def ipctk_available():
+    try:
+        import ipctk  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def run_table3(args):
+    """Per-query µs, FP, FN on the copied VF / EE sets; returns markdown lines."""
+    lines = ["| set | kind | queries (pos.) | method | mean µs (per call) | median µs (per call) "
+             "| mean µs (compiled loop) | FP | FN |", "|---|---|---|---|---|---|---|---|---|"]
+    have_ipctk = ipctk_available() and not args.no_ipctk
+    for name in args.sets:
+        for kind in ("vf", "ee"):
+            vertices, truth = Q.load_dataset(name, kind, root=args.data)
+            if args.max_queries:
+                vertices, truth = vertices[:args.max_queries], truth[:args.max_queries]
+            Q.batch(kind, vertices[:4])
+            Q.batch(kind, vertices[:4], method="trad")
+            runs = []
+            for m in args.methods:
+                for inc in args.inclusions:
+                    hit, per, bm = _time_queries(kind, vertices, m, inc, 1e-6, args.progress)
+                    label = f"{'Trad.' if m == 'trad' else 'Ours'} ({inc.upper()})"
+                    runs.append((label, hit, per, bm))
+            if have_ipctk:
+                hit, per = _time_ipctk(kind, vertices)
+                runs.append(("ipctk Tight-Inclusion", hit, per, None))
+            for label, hit, per, bm in runs:
+                fp = int(np.sum(hit & ~truth))
+                fn = int(np.sum(~hit & truth))
+                row = [name, kind.upper(), f"{len(truth)} ({int(truth.sum())})", label,
+                       _fmt(1e6 * per.mean()), _fmt(1e6 * np.median(per)),
+                       _fmt(None if bm is None else 1e6 * bm), str(fp), str(fn)]
+                lines.append("| " + " | ".join(row) + " |")
+                print(lines[-1], flush=True)
+    return lines
+
+
+# ------------------------------------------------------------------------ CLI
+def _floats(text):
+    return [float(x) for x in text.split(",") if x]
+
+
+def _names(allowed):
+    def parse(text):
+        items = [x for x in text.split(",") if x]
+        for x in items:
+            if x not in allowed:
+                raise argparse.ArgumentTypeError(f"expected items of {allowed}, got {x!r}")
+        return items
+    return parse
+
+
+def machine_line():
+    """One line describing the machine the numbers come from."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    cpu = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return (f"{cpu}, {os.cpu_count()} logical cores, Python {platform.python_version()}, "
+            f"numpy {np.__version__}, numba {__import__('numba').__version__}; "
+            f"single-threaded queries")
+
+
+def update_markdown(path, key, body):
+    """Replace (or append) the block between ``<!-- key start -->`` and ``<!-- key end -->``."""
+    start, end = f"<!-- {key} start -->", f"<!-- {key} end -->"
+    block = f"{start}\n{body.rstrip()}\n{end}\n"
+    text = open(path).read() if os.path.exists(path) else ""
+    pattern = re.compile(re.escape(start) + r".*?" + re.escape(end) + r"\n?", re.S)
+    if pattern.search(text):
+        text = pattern.sub(lambda _: block, text)
+    else:
+        text = text.rstrip() + ("\n\n" if text.strip() else "") + block
+    with open(path, "w") as fh:
+        fh.write(text)
+
+
+def build_parser():
+    p = argparse.ArgumentParser(
+        prog="mjccd bench patches",
+        description="Chen et al. 2024 Table 1 (random patches) and Table 3 (VF/EE query "
+                    "sets) protocols for the patch solver.")
+    p.add_argument("--table", choices=["1", "3", "all"], default="all")
+    p.add_argument("--cases", type=int, default=1000, help="Table 1 cases per primitive")
+    p.add_argument("--kinds", type=_names(["triangle", "quad"]), default=["triangle", "quad"])
+    p.add_argument("--orders", type=lambda s: [int(x) for x in s.split(",")], default=[1, 2, 3])
+    p.add_argument("--deltas", type=_floats, default=[1e-4, 1e-5, 1e-6])
+    p.add_argument("--methods", type=_names(["trad", "ours"]), default=["trad", "ours"])
+    p.add_argument("--inclusions", type=_names(["aabb", "obb"]), default=["aabb", "obb"])
+    p.add_argument("--trad-max-iterations", type=int, default=1_000_000,
+                   help="Trad. cases stopped at this many iterations count as capped "
+                        "(their time is then a lower bound)")
+    p.add_argument("--seed", type=int, default=2024)
+    p.add_argument("--sets", type=_names(["handcrafted", "simulation"]),
+                   default=["handcrafted", "simulation"])
+    p.add_argument("--data", default=str(Q.DATA_ROOT), help="root of the copied query sets")
+    p.add_argument("--max-queries", type=int, default=0, help="Table 3: first N per file set")
+    p.add_argument("--no-ipctk", action="store_true", help="skip ipctk even if installed")
+    p.add_argument("--markdown", help="write / update the tables in this markdown file")
+    p.add_argument("--no-progress", dest="progress", action="store_false")
+    return p
+
+
+def main(argv):
+    """Entry point of ``mjccd bench patches``; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    command = "mjccd bench patches " + " ".join(argv)
+    print(f"# machine: {machine_line()}")
+    if args.table in ("1", "all"):
+        lines, _ = run_table1(args)
+        if args.markdown:
+            body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
+                    + "\n".join(lines) + "\n")
+            update_markdown(args.markdown, "mjccd-bench-patches-table1", body)
+    if args.table in ("3", "all"):
+        lines = run_table3(args)
+        if args.markdown:
+            body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
+                    + "\n".join(lines) + "\n")
+            update_markdown(args.markdown, "mjccd-bench-patches-table3", body)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main(sys.argv[1:]))

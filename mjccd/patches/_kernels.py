@@ -678,9 +678,9 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
         regB[i, 2] = 1.0 if kind_b != 0 else 0.0
         regB[i, 3] = 1.0
     # heap: floats (t_lo, t_hi, width, bucket), ints (pool a, pool b, root pair); lower
-    # ends within one time quantum (delta) count as ties and deeper nodes go first, so
+    # ends within one time quantum (delta / 16) count as ties and deeper nodes go first, so
     # nearly simultaneous candidates (face contact) are refined depth-first
-    quantum = delta
+    quantum = 0.0625 * delta
     margin = rel * max(_scale(roots_a), _scale(roots_b))
     capH = 256
     hf = np.empty((capH, 4))

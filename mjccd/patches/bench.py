@@ -159,7 +159,8 @@ def _time_queries(kind, vertices, method, inclusion, delta, progress):
     if bar is not None:
         bar.close()
     t0 = time.perf_counter()
-    toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta)
+    toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta,
+                     compiled_loop=True)
     batch_mean = (time.perf_counter() - t0) / q
     assert np.array_equal(np.isfinite(toi), hit)
     return hit, per, batch_mean
@@ -199,8 +200,7 @@ def run_table3(args):
             vertices, truth = Q.load_dataset(name, kind, root=args.data)
             if args.max_queries:
                 vertices, truth = vertices[:args.max_queries], truth[:args.max_queries]
-            Q.batch(kind, vertices[:4])
-            Q.batch(kind, vertices[:4], method="trad")
+            Q.batch(kind, vertices[:4], compiled_loop=True)
             runs = []
             for m in args.methods:
                 for inc in args.inclusions:

@@ -91,11 +91,13 @@ def query_kernel_args(kind):
 
 def batch(kind, vertices, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0,
           margin=DEFAULT_MARGIN, time_margin=DEFAULT_TIME_MARGIN, max_iterations=1_000_000,
-          max_nodes=1 << 21):
-    """Run many VF (``kind="vf"``) or EE (``"ee"``) queries in one compiled loop.
+          max_nodes=1 << 21, compiled_loop=False):
+    """Run many VF (``kind="vf"``) or EE (``"ee"``) queries without building Patch objects.
 
     Args:
         vertices: (Q, 8, 3) in the query-file vertex order (see :func:`load_queries`).
+        compiled_loop: loop over the queries inside one compiled call (fastest, but it
+            compiles a second kernel on first use) instead of one call per query.
 
     Returns:
         (toi, status): (Q,) lower-bound times (inf when no contact) and status strings.
@@ -108,9 +110,19 @@ def batch(kind, vertices, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA
     toi = np.empty(q)
     status = np.empty(q, np.int64)
     its = np.empty(q, np.int64)
-    K.search_batch(ka, ca, sa, a, kb, cb, sb, b, METHODS[method], inclusion == "obb",
-                   float(delta), float(t_max), float(margin), float(time_margin),
-                   int(max_iterations), int(max_nodes), toi, status, its)
+    args = (METHODS[method], inclusion == "obb", float(delta), float(t_max), float(margin),
+            float(time_margin), int(max_iterations), int(max_nodes))
+    if compiled_loop:
+        K.search_batch(ka, ca, sa, a, kb, cb, sb, b, *args, toi, status, its)
+    else:
+        pairs = np.zeros((1, 2), np.int64)
+        points = np.empty((1, 9))
+        info = np.zeros(4, np.int64)
+        for i in range(q):
+            K.search(ka, ca, sa, a[i], kb, cb, sb, b[i], pairs, *args, False, 0.0, 0.0, points,
+                     info)
+            status[i] = info[0]
+            toi[i] = points[0, 0] if info[0] != K.NO_CONTACT else np.inf
     return toi, np.array([STATUS[int(s)] for s in status])
 
 

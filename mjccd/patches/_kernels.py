@@ -614,7 +614,7 @@ def _sift_down(hf, hi, n):
 @_jit
 def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b, pairs,
            method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
-           manifold, simultaneity, separation, points_out, info_out):
+           depth_first_ties, manifold, simultaneity, separation, points_out, info_out):
     """Best-first subdivision search for the earliest contact (paper Alg. 2, or Alg. 1).
 
     roots_a: (Ka, Na, 7) homogeneous rows of the primitives of side A (likewise B);
@@ -677,10 +677,11 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
         regB[i, 1] = 0.0
         regB[i, 2] = 1.0 if kind_b != 0 else 0.0
         regB[i, 3] = 1.0
-    # heap: floats (t_lo, t_hi, width, bucket), ints (pool a, pool b, root pair); lower
-    # ends within one time quantum (delta / 16) count as ties and deeper nodes go first, so
-    # nearly simultaneous candidates (face contact) are refined depth-first
-    quantum = 0.0625 * delta
+    # heap: floats (t_lo, t_hi, width, bucket), ints (pool a, pool b, root pair). With
+    # depth_first_ties, lower ends within one time quantum (delta / 16) count as ties and
+    # deeper nodes go first, so nearly simultaneous candidates (face contact) are refined
+    # depth-first; otherwise the order is the lower end alone (the papers' queue)
+    quantum = 0.0625 * delta if depth_first_ties else 0.0
     margin = rel * max(_scale(roots_a), _scale(roots_b))
     capH = 256
     hf = np.empty((capH, 4))
@@ -712,8 +713,8 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                 hi = _grow2(hi, capH)
             hf[nh, 0] = lo
             hf[nh, 1] = up
-            hf[nh, 2] = max(regA[ia, 2], regB[ib, 2])
-            hf[nh, 3] = np.floor(lo / quantum)
+            hf[nh, 2] = max(regA[ia, 2], regB[ib, 2]) if quantum > 0.0 else 0.0
+            hf[nh, 3] = np.floor(lo / quantum) if quantum > 0.0 else lo
             hi[nh, 0] = ia
             hi[nh, 1] = ib
             hi[nh, 2] = p
@@ -907,8 +908,8 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                         idxB[cb] = j
                     hf[nh, 0] = lo
                     hf[nh, 1] = up
-                    hf[nh, 2] = max(rgA[ca, 2], rgB[cb, 2])
-                    hf[nh, 3] = np.floor(lo / quantum)
+                    hf[nh, 2] = max(rgA[ca, 2], rgB[cb, 2]) if quantum > 0.0 else 0.0
+                    hf[nh, 3] = np.floor(lo / quantum) if quantum > 0.0 else lo
                     hi[nh, 0] = idxA[ca]
                     hi[nh, 1] = idxB[cb]
                     hi[nh, 2] = pr
@@ -947,7 +948,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
 @_jit
 def search_batch(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                  method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
-                 toi_out, status_out, iterations_out):
+                 depth_first_ties, toi_out, status_out, iterations_out):
     """One single-pair search per query q: roots_a[q] against roots_b[q] (shape (Q, 1, N, 7))."""
     pairs = np.zeros((1, 2), np.int64)
     points = np.empty((1, 9))
@@ -955,7 +956,7 @@ def search_batch(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, ro
     for q in range(roots_a.shape[0]):
         search(kind_a, corners_a, sub_a, roots_a[q], kind_b, corners_b, sub_b, roots_b[q],
                pairs, method, use_obb, delta, t_max, rel, time_margin, max_iterations,
-               max_nodes, False, 0.0, 0.0, points, info)
+               max_nodes, depth_first_ties, False, 0.0, 0.0, points, info)
         status_out[q] = info[0]
         iterations_out[q] = info[1]
         toi_out[q] = points[0, 0] if info[0] != NO_CONTACT else INF

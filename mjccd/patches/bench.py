@@ -20,6 +20,12 @@ from . import queries as Q
 from .primitives import Patch
 from .solver import first_contact
 
+# method variants: (solver method, queue order). "trad" is Alg. 1 exactly as written
+# (queue by the lower time end); "trad-depth" is the same with this package's queue order
+VARIANTS = {"trad": ("trad", "time"), "ours": ("ours", "depth"),
+            "trad-depth": ("trad", "depth"), "ours-time": ("ours", "time")}
+LABELS = {"trad": "Trad.", "ours": "Ours", "trad-depth": "Trad.-depth", "ours-time": "Ours-time"}
+
 PAPER_T1_OURS_OBB = {  # paper Table 1, "Ours (OBB)" column [ms] for delta 1e-4, 1e-5, 1e-6
     ("triangle", 1): (4.26, 5.51, 6.68), ("triangle", 2): (22.40, 42.67, 90.87),
     ("triangle", 3): (35.98, 66.73, 131.30), ("quad", 1): (5.00, 9.72, 22.13),
@@ -74,11 +80,12 @@ def run_table1(args):
     header = ["patch", "order", "cases", "CP"]
     for m, inc in configs:
         for d in args.deltas:
-            header.append(f"{'Trad.' if m == 'trad' else 'Ours'} ({inc.upper()}) {d:g}")
-    if "trad" in args.methods and "ours" in args.methods:
+            header.append(f"{LABELS[m]} ({inc.upper()}) {d:g}")
+    speedups = [t for t in ("trad", "trad-depth") if t in args.methods and "ours" in args.methods]
+    for t in speedups:
         for inc in args.inclusions:
             for d in args.deltas:
-                header.append(f"speed-up {inc.upper()} {d:g}")
+                header.append(f"{LABELS[t]}/Ours {inc.upper()} {d:g}")
     lines.append("| " + " | ".join(header) + " |")
     lines.append("|" + "---|" * len(header))
     raw = []
@@ -87,7 +94,6 @@ def run_table1(args):
             rng = np.random.default_rng(args.seed)
             cases = [table1_case(rng, kind, order) for _ in range(args.cases)]
             first_contact(*cases[0], delta=1e-2)  # compile / load the kernels
-            first_contact(*cases[0], delta=1e-2, method="trad")
             times = {}
             capped = {}
             hits = None
@@ -96,11 +102,12 @@ def run_table1(args):
             for m, inc in configs:
                 for d in args.deltas:
                     ts, cp, cap = [], 0, 0
-                    limit = args.trad_max_iterations if m == "trad" else 10_000_000
+                    method, queue = VARIANTS[m]
+                    limit = args.trad_max_iterations if method == "trad" else 10_000_000
                     for a, b in cases:
                         t0 = time.perf_counter()
-                        c = first_contact(a, b, method=m, inclusion=inc, delta=d,
-                                          max_iterations=limit)
+                        c = first_contact(a, b, method=method, inclusion=inc, delta=d,
+                                          max_iterations=limit, queue=queue)
                         ts.append(time.perf_counter() - t0)
                         cp += c is not None
                         cap += c is not None and c.status != "converged"
@@ -119,11 +126,11 @@ def run_table1(args):
                     if capped[m, inc, d]:
                         cell += f" ({capped[m, inc, d]} capped)"
                     row.append(cell)
-            if "trad" in args.methods and "ours" in args.methods:
+            for t in speedups:
                 for inc in args.inclusions:
                     for d in args.deltas:
-                        s = times["trad", inc, d] / times["ours", inc, d]
-                        row.append(("≥" if capped["trad", inc, d] else "") + f"{s:.1f}×")
+                        s = times[t, inc, d] / times["ours", inc, d]
+                        row.append(("≥" if capped[t, inc, d] else "") + f"{s:.1f}×")
             lines.append("| " + " | ".join(row) + " |")
             raw.append({"kind": kind, "order": order, "cp": hits, "times": times,
                         "capped": capped})
@@ -132,13 +139,14 @@ def run_table1(args):
 
 
 # ------------------------------------------------------------------------ table 3
-def _time_queries(kind, vertices, method, inclusion, delta, progress):
+def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, progress):
     """Per-query wall time through one compiled call each, plus the batch mean."""
     a, b = Q.query_primitives(kind, vertices)
     ka, ca, sa, kb, cb, sb = Q.query_kernel_args(kind)
     pairs = np.zeros((1, 2), np.int64)
     pts = np.empty((1, 9))
     info = np.zeros(4, np.int64)
+    method, queue = VARIANTS[variant]
     m = K.OURS if method == "ours" else K.TRAD
     obb = inclusion == "obb"
     q = len(vertices)
@@ -150,8 +158,8 @@ def _time_queries(kind, vertices, method, inclusion, delta, progress):
         ai, bi = a[i], b[i]
         t0 = time.perf_counter()
         search(ka, ca, sa, ai, kb, cb, sb, bi, pairs, m, obb, delta, 1.0,
-               Q.DEFAULT_MARGIN, Q.DEFAULT_TIME_MARGIN, 1_000_000, 1 << 21, False, 0.0, 0.0,
-               pts, info)
+               Q.DEFAULT_MARGIN, Q.DEFAULT_TIME_MARGIN, max_iterations, 1 << 21, queue == "depth",
+               False, 0.0, 0.0, pts, info)
         per[i] = time.perf_counter() - t0
         hit[i] = info[0] != K.NO_CONTACT
         if bar is not None and i % 256 == 0:
@@ -160,7 +168,7 @@ def _time_queries(kind, vertices, method, inclusion, delta, progress):
         bar.close()
     t0 = time.perf_counter()
     toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta,
-                     compiled_loop=True)
+                     queue=queue, max_iterations=max_iterations, compiled_loop=True)
     batch_mean = (time.perf_counter() - t0) / q
     assert np.array_equal(np.isfinite(toi), hit)
     return hit, per, batch_mean
@@ -204,8 +212,9 @@ def run_table3(args):
             runs = []
             for m in args.methods:
                 for inc in args.inclusions:
-                    hit, per, bm = _time_queries(kind, vertices, m, inc, 1e-6, args.progress)
-                    label = f"{'Trad.' if m == 'trad' else 'Ours'} ({inc.upper()})"
+                    hit, per, bm = _time_queries(kind, vertices, m, inc, 1e-6,
+                                                 args.query_max_iterations, args.progress)
+                    label = f"{LABELS[m]} ({inc.upper()})"
                     runs.append((label, hit, per, bm))
             if have_ipctk:
                 hit, per = _time_ipctk(kind, vertices)
@@ -276,7 +285,10 @@ def build_parser():
     p.add_argument("--kinds", type=_names(["triangle", "quad"]), default=["triangle", "quad"])
     p.add_argument("--orders", type=lambda s: [int(x) for x in s.split(",")], default=[1, 2, 3])
     p.add_argument("--deltas", type=_floats, default=[1e-4, 1e-5, 1e-6])
-    p.add_argument("--methods", type=_names(["trad", "ours"]), default=["trad", "ours"])
+    p.add_argument("--methods", type=_names(list(VARIANTS)), default=["trad", "ours"],
+                   help="trad: Alg. 1 with the queue ordered by the lower time end (as in the "
+                        "paper); ours: Alg. 2 with this package's queue order; trad-depth / "
+                        "ours-time: the other queue order")
     p.add_argument("--inclusions", type=_names(["aabb", "obb"]), default=["aabb", "obb"])
     p.add_argument("--trad-max-iterations", type=int, default=1_000_000,
                    help="Trad. cases stopped at this many iterations count as capped "
@@ -286,6 +298,9 @@ def build_parser():
                    default=["handcrafted", "simulation"])
     p.add_argument("--data", default=str(Q.DATA_ROOT), help="root of the copied query sets")
     p.add_argument("--max-queries", type=int, default=0, help="Table 3: first N per file set")
+    p.add_argument("--query-max-iterations", type=int, default=1_000_000,
+                   help="Table 3: iteration limit per query (a stopped query counts as a "
+                        "collision, i.e. conservatively)")
     p.add_argument("--no-ipctk", action="store_true", help="skip ipctk even if installed")
     p.add_argument("--markdown", help="write / update the tables in this markdown file")
     p.add_argument("--no-progress", dest="progress", action="store_false")

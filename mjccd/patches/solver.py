@@ -15,6 +15,7 @@ from .primitives import KIND_CODE, Patch, corner_indices, subdivision_matrices
 
 METHODS = {"ours": K.OURS, "trad": K.TRAD}
 INCLUSIONS = ("obb", "aabb")
+QUEUES = ("depth", "time")
 STATUS = {K.NO_CONTACT: "no_contact", K.CONTACT: "converged",
           K.MAX_ITERATIONS: "max_iterations", K.MAX_NODES: "max_nodes"}
 
@@ -84,7 +85,9 @@ class _Side:
 
 
 def _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations,
-             max_nodes):
+             max_nodes, queue="depth"):
+    if queue not in QUEUES:
+        raise ValueError(f"`queue`: expected 'depth' or 'time', got {queue!r}")
     if method not in METHODS:
         raise ValueError(f"`method`: expected one of {sorted(METHODS)}, got {method!r}")
     if inclusion not in INCLUSIONS:
@@ -103,8 +106,9 @@ def _options(method, inclusion, delta, t_max, margin, time_margin, max_iteration
 
 
 def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iterations,
-         max_nodes, pairs, manifold, simultaneity, separation, max_points):
-    _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations, max_nodes)
+         max_nodes, queue, pairs, manifold, simultaneity, separation, max_points):
+    _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations, max_nodes,
+             queue)
     sa, sb = _Side(_as_set(a, "a")), _Side(_as_set(b, "b"))
     if pairs is None:
         pairs = np.array([(i, j) for i in range(len(sa.items)) for j in range(len(sb.items))],
@@ -119,7 +123,8 @@ def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iter
     K.search(sa.kind, sa.corners, sa.sub, sa.roots, sb.kind, sb.corners, sb.sub, sb.roots,
              np.ascontiguousarray(pairs), METHODS[method], inclusion == "obb", float(delta),
              float(t_max), float(margin), float(time_margin), int(max_iterations),
-             int(max_nodes), manifold, float(simultaneity), float(separation), points, info)
+             int(max_nodes), queue == "depth", manifold, float(simultaneity), float(separation),
+             points, info)
     return sa, sb, pairs, points, info
 
 
@@ -138,7 +143,7 @@ def _contact(sa, sb, pairs, row, status, iterations):
 
 def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0,
                   margin=DEFAULT_MARGIN, time_margin=DEFAULT_TIME_MARGIN,
-                  max_iterations=10_000_000, max_nodes=1 << 21, pairs=None):
+                  max_iterations=10_000_000, max_nodes=1 << 21, queue="depth", pairs=None):
     """Earliest contact between two moving primitives (or two sets of them), or None.
 
     Args:
@@ -151,6 +156,9 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
             control point) that widens the inclusions against rounding.
         time_margin: widening of each candidate time interval while it is tested.
         max_iterations, max_nodes: search limits; reaching one is reported in ``status``.
+        queue: ``"depth"`` (default): candidates whose lower time ends lie within delta/16
+            are ties and the smaller one goes first; ``"time"``: the lower end alone, as
+            written in the paper's Alg. 1 and 2 (face contacts then grow the queue).
         pairs: optional (P, 2) list of (i, j) primitive pairs to test (default: all).
 
     Returns:
@@ -159,7 +167,8 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
     sa, sb, pairs, points, info = _run(
         a, b, method=method, inclusion=inclusion, delta=delta, t_max=t_max, margin=margin,
         time_margin=time_margin, max_iterations=max_iterations, max_nodes=max_nodes,
-        pairs=pairs, manifold=False, simultaneity=0.0, separation=0.0, max_points=1)
+        queue=queue, pairs=pairs, manifold=False, simultaneity=0.0, separation=0.0,
+        max_points=1)
     status = STATUS[int(info[0])]
     if status == "no_contact":
         return None
@@ -169,7 +178,7 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
 def contact_manifold(a, b, *, simultaneity, separation, max_points=256, method="ours",
                      inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0, margin=DEFAULT_MARGIN,
                      time_margin=DEFAULT_TIME_MARGIN, max_iterations=10_000_000,
-                     max_nodes=1 << 21, pairs=None):
+                     max_nodes=1 << 21, queue="depth", pairs=None):
     """All distinct contact points within ``simultaneity`` of the earliest contact time.
 
     Points are at least ``separation`` apart (world distance between the side-A points);
@@ -188,7 +197,7 @@ def contact_manifold(a, b, *, simultaneity, separation, max_points=256, method="
     sa, sb, pairs, points, info = _run(
         a, b, method=method, inclusion=inclusion, delta=delta, t_max=t_max, margin=margin,
         time_margin=time_margin, max_iterations=max_iterations, max_nodes=max_nodes,
-        pairs=pairs, manifold=True, simultaneity=simultaneity, separation=separation,
+        queue=queue, pairs=pairs, manifold=True, simultaneity=simultaneity, separation=separation,
         max_points=int(max_points))
     stats = SearchStats(STATUS[int(info[0])], int(info[1]), int(info[3]))
     found = int(info[2])

@@ -9,4 +9,4 @@ mjccd=${MJCCD:-python -m mjccd.patches.bench}
 $mjccd --table 3 --query-max-iterations 100000 --markdown "$OUT"
 $mjccd --table 1 --cases 10 --trad-max-iterations 100000 --markdown "$OUT"
 $mjccd --table 1 --cases 10 --methods trad-depth,ours --inclusions obb --deltas 1e-6 \
-    --orders 2,3 --trad-max-iterations 100000 --markdown "$OUT.depth-queue"
+    --orders 2,3 --trad-max-iterations 100000 --label depth-queue --markdown "$OUT"

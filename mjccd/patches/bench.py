@@ -303,6 +303,8 @@ def build_parser():
                         "collision, i.e. conservatively)")
     p.add_argument("--no-ipctk", action="store_true", help="skip ipctk even if installed")
     p.add_argument("--markdown", help="write / update the tables in this markdown file")
+    p.add_argument("--label", default="", type=lambda x: f"-{x}" if x else "",
+                   help="suffix of the markdown section name, to keep several runs")
     p.add_argument("--no-progress", dest="progress", action="store_false")
     return p
 
@@ -317,13 +319,13 @@ def main(argv):
         if args.markdown:
             body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
                     + "\n".join(lines) + "\n")
-            update_markdown(args.markdown, "mjccd-bench-patches-table1", body)
+            update_markdown(args.markdown, "mjccd-bench-patches-table1" + args.label, body)
     if args.table in ("3", "all"):
         lines = run_table3(args)
         if args.markdown:
             body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
                     + "\n".join(lines) + "\n")
-            update_markdown(args.markdown, "mjccd-bench-patches-table3", body)
+            update_markdown(args.markdown, "mjccd-bench-patches-table3" + args.label, body)
     return 0
 
 

@@ -620,8 +620,12 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
     roots_a: (Ka, Na, 7) homogeneous rows of the primitives of side A (likewise B);
     pairs: (P, 2) which (a, b) primitives to test. ``method`` is OURS (time-dependent
     inclusions, parameter subdivision only) or TRAD (swept boxes, time bisected too).
-    Nodes are popped by the lower end of their time interval; a node is accepted when
-    every parameter width (and for TRAD the time width) is below ``delta``.
+    Nodes are popped by the lower end of their time interval (with depth_first_ties,
+    ends within delta/16 tie and the smaller node goes first); a node is accepted when
+    every parameter width (and for TRAD the time width) is below ``delta``. The reported
+    time is the smaller of the accepted node's lower end and every queued lower end, so
+    it stays a lower bound of the first contact. Every contour line is shifted outwards
+    by ``rel`` times the largest absolute coordinate of all input control points.
 
     Writes rows ``[t, u1, v1, u2, v2, x, y, z, pair]`` to ``points_out`` (one row, or up
     to ``points_out.shape[0]`` distinct points in manifold mode) and

@@ -139,7 +139,8 @@ def run_table1(args):
 
 
 # ------------------------------------------------------------------------ table 3
-def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, progress):
+def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, progress,
+                  compiled_loop):
     """Per-query wall time through one compiled call each, plus the batch mean."""
     a, b = Q.query_primitives(kind, vertices)
     ka, ca, sa, kb, cb, sb = Q.query_kernel_args(kind)
@@ -166,6 +167,8 @@ def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, pro
             bar.update(min(256, q - i))
     if bar is not None:
         bar.close()
+    if not compiled_loop:
+        return hit, per, None
     t0 = time.perf_counter()
     toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta,
                      queue=queue, max_iterations=max_iterations, compiled_loop=True)
@@ -206,14 +209,16 @@ def run_table3(args):
     for name in args.sets:
         for kind in ("vf", "ee"):
             vertices, truth = Q.load_dataset(name, kind, root=args.data)
-            if args.max_queries:
-                vertices, truth = vertices[:args.max_queries], truth[:args.max_queries]
-            Q.batch(kind, vertices[:4], compiled_loop=True)
+            if args.max_queries and args.max_queries < len(truth):
+                pick = np.linspace(0, len(truth) - 1, args.max_queries).round().astype(int)
+                vertices, truth = vertices[pick], truth[pick]
+            Q.batch(kind, vertices[:4], compiled_loop=args.compiled_loop)
             runs = []
             for m in args.methods:
                 for inc in args.inclusions:
                     hit, per, bm = _time_queries(kind, vertices, m, inc, 1e-6,
-                                                 args.query_max_iterations, args.progress)
+                                                 args.query_max_iterations, args.progress,
+                                                 args.compiled_loop)
                     label = f"{LABELS[m]} ({inc.upper()})"
                     runs.append((label, hit, per, bm))
             if have_ipctk:
@@ -297,10 +302,13 @@ def build_parser():
     p.add_argument("--sets", type=_names(["handcrafted", "simulation"]),
                    default=["handcrafted", "simulation"])
     p.add_argument("--data", default=str(Q.DATA_ROOT), help="root of the copied query sets")
-    p.add_argument("--max-queries", type=int, default=0, help="Table 3: first N per file set")
+    p.add_argument("--max-queries", type=int, default=0,
+                   help="Table 3: an evenly spaced subset of N queries per set and kind")
     p.add_argument("--query-max-iterations", type=int, default=1_000_000,
                    help="Table 3: iteration limit per query (a stopped query counts as a "
                         "collision, i.e. conservatively)")
+    p.add_argument("--compiled-loop", action="store_true",
+                   help="Table 3: also time all queries inside one compiled loop (mean)")
     p.add_argument("--no-ipctk", action="store_true", help="skip ipctk even if installed")
     p.add_argument("--markdown", help="write / update the tables in this markdown file")
     p.add_argument("--label", default="", type=lambda x: f"-{x}" if x else "",

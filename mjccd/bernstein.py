@@ -210,11 +210,11 @@ def first_root(c, tol):
     n = c.shape[0] - 1
     if n == 0:
         return 0.0 if c[0] == 0.0 else -1.0
-    max_depth = 64
+    # every pending right half is at most half as wide as the one before it
+    max_depth = int(np.ceil(-np.log2(max(tol, 1e-300)))) + 2
     stack_c = np.empty((max_depth, n + 1))
     stack_lo = np.empty(max_depth)
     stack_hi = np.empty(max_depth)
-    top = 0
     stack_c[0, :] = c
     stack_lo[0] = 0.0
     stack_hi[0] = 1.0
@@ -224,6 +224,7 @@ def first_root(c, tol):
         cur = stack_c[top].copy()
         lo = stack_lo[top]
         hi = stack_hi[top]
+        positive_at_lo = cur[0] > 0.0
         while True:
             cmin = cur.min()
             cmax = cur.max()
@@ -241,11 +242,10 @@ def first_root(c, tol):
                 # clipping does not shrink enough: bisect, left half first
                 left, right = subdivide(cur, 0.5)
                 mid = lo + 0.5 * width
-                if top < max_depth:
-                    stack_c[top, :] = right
-                    stack_lo[top] = mid
-                    stack_hi[top] = hi
-                    top += 1
+                stack_c[top, :] = right
+                stack_lo[top] = mid
+                stack_hi[top] = hi
+                top += 1
                 cur = left
                 hi = mid
                 continue
@@ -253,6 +253,10 @@ def first_root(c, tol):
             new_lo = lo + alpha * width
             new_hi = lo + beta * width
             lo, hi = new_lo, max(new_hi, new_lo)
+            # Clipping never passes a root, so the value at the new lower end keeps
+            # its sign; when rounding flips it (or zeroes it) the root is right here.
+            if cur[0] == 0.0 or (cur[0] > 0.0) != positive_at_lo:
+                return lo
             if hi - lo <= tol:
                 return lo
     return -1.0

@@ -175,8 +175,8 @@ def _sort_by_entry(cand, m, entry):
 
 
 @_jit
-def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, timing,
-                outcome, entry, times, points, normals, ticks, ws):
+def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only,
+                timing, outcome, entry, times, points, normals, ticks, ws):
     """One frame over all pairs.  Fills the per-pair arrays; returns (best pair, counters, intervals, owners).
 
     ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
@@ -184,7 +184,9 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
     time.  With ``all_pairs`` every pair not cleared by a filter is solved
     over [0, 1] and its intervals are returned (``owners`` gives the pair of
     each row); otherwise only the frame's first contact is sought.  ``ws`` is
-    the scratch from :func:`workspace`.
+    the scratch from :func:`workspace`.  With ``new_only`` pairs already
+    touching or overlapping at the start are counted but neither solved nor
+    reported, so the first contact is the earliest new one.
     """
     n = radii.shape[0]
     npairs = pairs.shape[0]
@@ -217,7 +219,10 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
                                 cache_n, cache_kind, k, work, scratch)
         outcome[k] = code
         entry[k] = te
-        if code == OVERLAP_T0:
+        if code == OVERLAP_T0 and new_only:
+            counters[4] += 1
+            counters[6] += 1
+        elif code == OVERLAP_T0:
             times[k] = 0.0
             if best > 0.0:
                 best, best_k = 0.0, k
@@ -296,8 +301,8 @@ def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache
         if timing:
             t_start = _ticks()
         k, c, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
-                                 use_cache, cache_n, cache_kind, False, timing, outcomes[f], entry, times, points,
-                                 normals, ticks[f], ws)
+                                 use_cache, cache_n, cache_kind, False, False, timing, outcomes[f], entry, times,
+                                 points, normals, ticks[f], ws)
         counters[f] = c
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
@@ -448,7 +453,7 @@ class Scene:
         p = _validate.pose_array(poses, field, len(self.radii))
         return np.ascontiguousarray(p[:, :3]), np.ascontiguousarray(p[:, 3:])
 
-    def step(self, poses_t0, poses_t1, *, all_pairs=False):
+    def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
         """Check one frame.
 
         Args:
@@ -456,6 +461,9 @@ class Scene:
                 start and end of the frame (world frame).
             all_pairs: also return every colliding pair with its first contact
                 and intervals (slower: no earliest-contact bound).
+            new_contacts_only: leave out pairs already touching or overlapping at
+                the start (they are still counted); the first contact is then the
+                earliest new one, found with the earliest-contact bound.
         Returns:
             :class:`FrameResult`.
         """
@@ -470,8 +478,8 @@ class Scene:
         ticks = np.zeros(npairs, dtype=np.int64)
         best_k, counters, iv, owner = step_kernel(
             self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
-            self._cache_kind, bool(all_pairs), False, outcome, entry, times, points, normals, ticks,
-            workspace(len(self.radii), npairs))
+            self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, points,
+            normals, ticks, workspace(len(self.radii), npairs))
         first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
         contacts = ()
         if all_pairs:

@@ -64,6 +64,23 @@ def test_first_root_finds_smallest(roots, tol):
     assert found == pytest.approx(min(roots), abs=tol)
 
 
+def test_first_root_survives_a_root_at_the_clipped_end():
+    """Regression: a shallow graze whose first root sits where clipping cuts.
+
+    Clipping narrows onto the root at 4.89e-7 so tightly that the rounded value at the
+    new lower end comes out -4e-36; the root must still be reported there, not skipped
+    for the second root near 5.5e-3 (the two bound a 1e-5-deep overlap).
+    """
+    c = np.array([1.1852516765579676e-08, -0.0013465272238574327, 0.026254659040808762,
+                  0.08222677472484546, 0.16639811958807552, 0.2789835219354132,
+                  0.42057449041876166, 0.5921375792202834, 0.7950207210097262,
+                  1.0309675231297692, 1.3021397557375618, 1.611148496339445,
+                  1.9610946432928085, 2.35561978177545, 2.798968690762514, 3.296065131639054,
+                  3.8526029735152454, 4.475155205690988, 5.171303987047259])
+    assert bz.evaluate(c, 1e-7) > 0.0 > bz.evaluate(c, 1e-6)
+    assert bz.first_root(c, 1e-15) == pytest.approx(4.8905525e-7, rel=1e-6)
+
+
 def test_first_root_none():
     c = bz.from_power(np.array([1.0, -1.0, 1.0]))  # 1 - t + t^2 > 0
     assert bz.first_root(c, 1e-15) == -1.0

@@ -120,6 +120,25 @@ def test_overlap_at_start_is_time_zero():
     assert res.counters.overlapping_t0 == 1
 
 
+def test_new_contacts_only_skips_pairs_overlapping_at_start():
+    """Pair 0 overlaps from the start; pair 1 first touches at t = 0.25; pair 2 later, at 6/7."""
+    radii = np.full((6, 3), 0.5)
+    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0],
+                   [10, 0, 0, 1, 0, 0, 0], [12, 0, 0, 1, 0, 0, 0],
+                   [20, 0, 0, 1, 0, 0, 0], [24, 0, 0, 1, 0, 0, 0]], float)
+    p1 = p0.copy()
+    p1[3, 0] = 8.0
+    p1[5, 0] = 20.5
+    scene = Scene(radii, pairs=[[0, 1], [2, 3], [4, 5]])
+    assert scene.step(p0, p1).first.time == 0.0
+    res = scene.step(p0, p1, new_contacts_only=True)
+    assert res.first.pair == 1 and res.first.time == pytest.approx(0.25, abs=1e-12)
+    assert res.counters.overlapping_t0 == 1 and res.counters.pruned == 1
+    full = scene.step(p0, p1, all_pairs=True, new_contacts_only=True)
+    assert [c.pair for c in full.contacts] == [1, 2]
+    assert full.contacts[1].time == pytest.approx(6 / 7, abs=1e-12)
+
+
 def test_pair_helpers():
     assert pairs_between([0, 1], [2, 3, 4]).tolist() == [[0, 2], [0, 3], [0, 4], [1, 2], [1, 3], [1, 4]]
     assert non_adjacent_pairs(4, [[0, 1], [2, 1], [2, 3]]).tolist() == [[0, 2], [0, 3], [1, 3]]

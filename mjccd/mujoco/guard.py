@@ -1,15 +1,13 @@
 """Guarded stepping: roll a MuJoCo step back to the exact first contact so fast bodies cannot tunnel."""
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import dm_env
 import mujoco
 import numpy as np
 
-from mjccd.ccd import first_contact
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.monitor import CCDMonitor
-from mjccd.mujoco.motions import Kinematics, capture, motions_between
-from mjccd.quadric import Ellipsoid
+from mjccd.mujoco.motions import capture
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -103,8 +101,6 @@ class GuardedStepper:
             raise ValueError("on_clamp: expected a callable or None")
         self.model, self.data, self.on_clamp = model, data, on_clamp
         self.ellipsoids, self.motion = ellipsoids, motion
-        self._kin = Kinematics(model)
-        self._shapes = [Ellipsoid(r) for r in ellipsoids.radii]
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
         self.last_report = None
         self.clamps_total = 0
@@ -144,7 +140,7 @@ class GuardedStepper:
                 else:
                     m.opt.timestep = length
                     mujoco.mj_step(m, d)
-                hit = self._first_new_contact(s0, capture(d), length)
+                hit = self.monitor.check(s0, capture(d))  # earliest new contact, or None
                 if hit is not None and len(clamps) < self.max_rechecks:
                     h = hit.fraction * length + self.overshoot * dt
                     clamps.append(hit)
@@ -175,29 +171,6 @@ class GuardedStepper:
             for c in clamps:
                 self.on_clamp(c)
         return self.last_report
-
-    def _first_new_contact(self, s0, s1, length):
-        """Earliest new contact of a guarded pair between s0 and s1, as (fraction, StepContact) or None.
-
-        The monitor's batched check names the pairs that meet; each is solved
-        again on its own with :func:`mjccd.ccd.first_contact` so that the
-        clamp goes to the entry instant of every reported pair.
-        """
-        hit = self.monitor.check(s0, s1)
-        if hit is None:
-            return None
-        contacts = self.monitor.last_report.contacts or (hit,)
-        motions = motions_between(self.model, self.ellipsoids, s0, s1, self.motion,
-                                  body_ids=self.monitor.body_ids, kinematics=self._kin)
-        best = hit
-        for c in contacts:
-            i, j = c.ellipsoids
-            exact = first_contact(self._shapes[i], motions[i], self._shapes[j], motions[j],
-                                  t_max=min(1.0, c.fraction + 1e-9))
-            if exact is not None and exact.status_at_start == "separate" and exact.time < best.fraction:
-                best = replace(c, fraction=float(exact.time), time=float(s0.time + exact.time * length),
-                               point=np.array(exact.point, float), normal=np.array(exact.normal, float))
-        return best
 
 
 class GuardedWrapper(dm_env.Environment):

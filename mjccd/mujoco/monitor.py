@@ -168,7 +168,7 @@ class CCDMonitor:
         all_pairs: report every colliding pair, not only the first contact.
         report_overlapping: when False, pairs already touching or overlapping at
             the start of a step are left out (only new contacts are reported;
-            this checks every pair, without the earliest-contact bound).
+            the earliest-contact bound still applies to the new ones).
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
@@ -243,10 +243,6 @@ class CCDMonitor:
             report = self._check_scene(s0, s1)
         else:
             report = self._check_chain(s0, s1)
-        if not self.report_overlapping:
-            kept = tuple(c for c in report.contacts if c.status_at_start == "separate")
-            report = StepReport(kept[0] if kept else None, kept if self.all_pairs else (),
-                                report.pairs_checked, report.pairs_solved)
         self.last_report = report
         if self.on_contact is not None:
             for c in (report.contacts if self.all_pairs else ((report.first,) if report.first else ())):
@@ -278,7 +274,8 @@ class CCDMonitor:
         p0 = self._poses(s0)
         p1 = self._kin.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions, self.ellipsoids.quaternions)
         self._cached = (s1, p1)
-        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs or not self.report_overlapping)
+        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs,
+                                 new_contacts_only=not self.report_overlapping)
 
         def convert(pc):
             i, j = self.pairs[pc.pair]
@@ -306,14 +303,13 @@ class CCDMonitor:
                 if gap > 1e-9 * (rmax[i] + rmax[j]):
                     continue
             solved += 1
-            exhaustive = self.all_pairs or not self.report_overlapping
-            hit = first_contact(shapes[i], motions[i], shapes[j], motions[j], t_max=1.0 if exhaustive else t_max)
-            if hit is None:
+            hit = first_contact(shapes[i], motions[i], shapes[j], motions[j],
+                                t_max=1.0 if self.all_pairs else t_max)
+            if hit is None or (hit.status_at_start != "separate" and not self.report_overlapping):
                 continue
             c = self._contact(s0, s1, i, j, hit.time, hit.point, hit.normal, p0)
             contacts.append(c)
             if first is None or c.fraction < first.fraction:
                 first, t_max = c, c.fraction
         contacts.sort(key=lambda c: c.fraction)
-        keep_all = self.all_pairs or not self.report_overlapping
-        return StepReport(first, tuple(contacts) if keep_all else (), len(self.pairs), solved)
+        return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved)

@@ -168,33 +168,49 @@ def from_power(p):
 
 
 @_jit
-def _hull_crossing(c, lo_only):
-    """Where the convex hull of the control points (i/n, c[i]) meets zero.
+def _chain_crossings(c, upper, stack, lo, hi):
+    """Widen [lo, hi] by the zero crossings of the lower (or upper) convex hull chain of (i, c[i])."""
+    n = c.shape[0] - 1
+    top = 0
+    for i in range(n + 1):
+        while top >= 2:
+            a = stack[top - 2]
+            b = stack[top - 1]
+            cross = (b - a) * (c[i] - c[a]) - (c[b] - c[a]) * (i - a)
+            if (cross >= 0.0) if upper else (cross <= 0.0):
+                top -= 1
+            else:
+                break
+        stack[top] = i
+        top += 1
+    for k in range(top):
+        p = stack[k]
+        if c[p] == 0.0:
+            lo = min(lo, p)
+            hi = max(hi, p)
+        elif k + 1 < top:
+            q = stack[k + 1]
+            if c[q] != 0.0 and (c[p] > 0.0) != (c[q] > 0.0):
+                x = p + (q - p) * c[p] / (c[p] - c[q])
+                lo = min(lo, x)
+                hi = max(hi, x)
+    return lo, hi
 
-    Returns (alpha, beta); (2, -1) when the hull misses the axis.  With
-    ``lo_only`` the upper end is left at 1 (only the first root matters).
+
+@_jit
+def _hull_crossing(c):
+    """Where the convex hull of the control points (i/n, c[i]) meets zero, in O(n).
+
+    The hull meets the axis in one segment [alpha, beta] whose ends lie on the
+    lower or the upper hull chain.  Returns (2, -1) when the hull misses the axis.
     """
     n = c.shape[0] - 1
-    alpha = 2.0
-    beta = -1.0
-    for i in range(n + 1):
-        ci = c[i]
-        if ci == 0.0:
-            x = i / n
-            alpha = min(alpha, x)
-            beta = max(beta, x)
-            continue
-        for j in range(i + 1, n + 1):
-            cj = c[j]
-            if (ci > 0.0) != (cj > 0.0) and cj != 0.0:
-                x = (i + (j - i) * ci / (ci - cj)) / n
-                if x < alpha:
-                    alpha = x
-                if x > beta:
-                    beta = x
-    if lo_only and alpha <= 1.0:
-        beta = 1.0
-    return alpha, beta
+    stack = np.empty(n + 1, dtype=np.int64)
+    lo, hi = _chain_crossings(c, False, stack, 2.0 * n, -1.0)
+    lo, hi = _chain_crossings(c, True, stack, lo, hi)
+    if hi < 0.0:
+        return 2.0, -1.0
+    return lo / n, hi / n
 
 
 @_jit
@@ -233,7 +249,7 @@ def first_root(c, tol):
             width = hi - lo
             if width <= tol:
                 return lo
-            alpha, beta = _hull_crossing(cur, False)
+            alpha, beta = _hull_crossing(cur)
             if alpha > beta:
                 break
             alpha = max(alpha, 0.0)

@@ -42,6 +42,7 @@ SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is ac
 EXIT_BOX_TOL = 1e-7      # time width at which the overlap search hands over to bisection
 MAX_SHOOTS = 4000
 MAX_BOXES = 200000
+CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact quartic maximum
 MAX_INTERVALS = 100000
 # relative rounding noise of F's coefficients (construction and evaluation)
 NOISE = 256 * 2.220446049250313e-16
@@ -227,50 +228,72 @@ def _split_t(C):
 
 @_jit
 def _split_u(C):
+    """The box halved in u: de Casteljau at 1/2 on the rows, all columns at once."""
+    m = C.shape[0] - 1
+    work = C.copy()
     low = np.empty_like(C)
     high = np.empty_like(C)
-    for j in range(C.shape[1]):
-        a, b = bz.subdivide(C[:, j].copy(), 0.5)
-        low[:, j] = a
-        high[:, j] = b
+    low[0] = work[0]
+    high[m] = work[m]
+    for r in range(1, m + 1):
+        for i in range(m - r + 1):
+            for j in range(C.shape[1]):
+                work[i, j] = 0.5 * (work[i, j] + work[i + 1, j])
+        low[r] = work[0]
+        high[m - r] = work[m - r]
     return low, high
 
 
 @_jit
 def _certified_negative(C):
-    """True when F < 0 on the box: all coefficients negative, or monotone in t from a negative face."""
-    if C.max() < 0.0:
+    """True when F < 0 on the box of coefficients C (quartic in u by degree n in t).
+
+    F(u, t) <= sum_i (max_j C[i, j]) B_i(u) for every t in the box, and the
+    maximum over u of that quartic is taken exactly, so no split in u is
+    needed where F is negative at every time but close to zero at one u.
+    """
+    cmax = C.max()
+    if cmax < 0.0:
         return True
-    m = C.shape[0]
-    n = C.shape[1] - 1
-    decreasing = True
-    increasing = True
-    for i in range(m):
-        for j in range(n):
-            d = C[i, j + 1] - C[i, j]
-            if d > 0.0:
-                decreasing = False
-            if d < 0.0:
-                increasing = False
-    if decreasing and C[:, 0].max() < 0.0:
-        return True
-    if increasing and C[:, n].max() < 0.0:
-        return True
-    return False
+    r = np.empty(5)
+    for i in range(5):
+        r[i] = C[i].max()
+    gmax, _ = quartic_max(r)
+    return gmax < -CERTIFY_ULPS * max(cmax, -C.min())
 
 
 @_jit
 def _bisect_sign(F, lo, hi, rising):
-    """Zero of State between lo and hi (State < 0 at lo when ``rising``, > 0 otherwise)."""
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi:
+    """Zero of State between lo and hi (State < 0 at lo when ``rising``, > 0 otherwise).
+
+    Regula falsi with the Illinois modification on State itself, which keeps
+    the bracket and converges superlinearly; a plain halving step is taken
+    whenever the bracket fails to halve.
+    """
+    sign = 1.0 if rising else -1.0
+    f_lo = sign * state(F, lo)[0]
+    f_hi = sign * state(F, hi)[0]
+    side = 0
+    for it in range(200):
+        width = hi - lo
+        if width <= 4.0 * 2.220446049250313e-16 * max(1.0, abs(hi)):
             break
+        mid = 0.5 * (lo + hi)
+        if it % 4 != 3 and f_hi > f_lo:
+            guess = hi - f_hi * width / (f_hi - f_lo)
+            if lo < guess < hi:
+                mid = guess
         gmax, _ = state(F, mid)
         if (gmax >= 0.0) == rising:
-            hi = mid
+            hi, f_hi = mid, sign * gmax
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
         else:
-            lo = mid
+            lo, f_lo = mid, sign * gmax
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
     return 0.5 * (lo + hi)
 
 

@@ -42,6 +42,7 @@ SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is ac
 EXIT_BOX_TOL = 1e-7      # time width at which the overlap search hands over to bisection
 MAX_SHOOTS = 4000
 MAX_BOXES = 200000
+MAX_MARCH = 2000
 CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact quartic maximum
 MAX_INTERVALS = 100000
 # relative rounding noise of F's coefficients (construction and evaluation)
@@ -298,13 +299,98 @@ def _bisect_sign(F, lo, hi, rising):
 
 
 @_jit
+def _curvature_bound(F, t0, t1):
+    """Upper bound of F_tt over u in [0, 1] and t in [t0, t1] (second differences of the restricted coefficients)."""
+    C = bz.bivariate_restrict_t(F, t0, t1)
+    n = C.shape[1] - 1
+    if n < 2:
+        return 0.0
+    m2 = 0.0
+    for i in range(C.shape[0]):
+        for j in range(n - 1):
+            m2 = max(m2, C[i, j + 2] - 2.0 * C[i, j + 1] + C[i, j])
+    return m2 * n * (n - 1) / ((t1 - t0) * (t1 - t0))
+
+
+@_jit
+def _march_exit(F, Fabs, noise, t_start, t_end):
+    """Certified march through an overlap: returns (exit time or 2.0 for none, or -1.0; time reached).
+
+    From a time a with State(a) < 0 it steps by the largest h (found by
+    doubling and halving) for which
+        max_u [F(u, a) + h F_t(u, a)] + h^2 M / 2 < 0,
+    M an upper bound of F_tt on a window [a, a + W] (Bernstein coefficients
+    of the second derivative, refreshed as the march goes and sized to the
+    steps).  Taylor's theorem makes that an upper bound of F on [a, a + h]
+    for every u, and the maximum over u of the quartic is exact, so
+    [a, a + h] is certified overlapping.  Near an exit the steps converge
+    quadratically onto it.  When they stall without reaching a time where
+    State >= 0 (a near-exit that does not happen) it returns -1 and the
+    time reached, for the box search to go on from there.
+    """
+    rows = F.shape[0]
+    Ft = np.empty((rows, F.shape[1] - 1))
+    for i in range(rows):
+        Ft[i] = bz.derivative(F[i])
+    g = np.empty(rows)
+    d = np.empty(rows)
+    r = np.empty(rows)
+    a = t_start
+    h = 1e-3 * (t_end - t_start)
+    w0 = w1 = a
+    m2 = 0.0
+    narrowed = False
+    for _ in range(MAX_MARCH):
+        if a >= t_end:
+            return 2.0, t_end
+        if a >= w1 or h < (w1 - w0) / 32.0:
+            w0 = a
+            w1 = min(t_end, a + 8.0 * h)
+            m2 = _curvature_bound(F, w0, w1)
+        margin = 0.0
+        for i in range(rows):
+            g[i] = bz.evaluate(F[i], a)
+            d[i] = bz.evaluate(Ft[i], a)
+            margin = max(margin, bz.evaluate(Fabs[i], a))
+        margin *= noise
+        h = min(2.0 * h, w1 - a)
+        while h >= EXIT_BOX_TOL:
+            for i in range(rows):
+                r[i] = g[i] + h * d[i]
+            bmax, _ = quartic_max(r)
+            if bmax + 0.5 * m2 * h * h < -margin:
+                break
+            h *= 0.5
+        if h >= EXIT_BOX_TOL:
+            a += h
+            narrowed = False
+            continue
+        if not narrowed and w1 - w0 > 16.0 * EXIT_BOX_TOL:  # the window may be too wide: retry narrower
+            h = 2.0 * EXIT_BOX_TOL
+            w1 = a
+            narrowed = True
+            continue
+        tb = min(a + EXIT_BOX_TOL, t_end)
+        gmax, _ = state(F, tb)
+        if gmax >= 0.0:
+            return _bisect_sign(F, a, tb, True), tb
+        return -1.0, a
+    return -1.0, a
+
+
+@_jit
 def search_exit(F, Fabs, noise, t_start, t_end):
     """First time in [t_start, t_end] at which the pair is separate again, or 2.0.
 
-    Requires the pair to overlap at t_start.  Boxes of (u, t) are taken in
-    order of their start time, so everything before the popped box is
-    certified negative.
+    Requires the pair to overlap at t_start.  The certified march
+    (:func:`_march_exit`) goes first; where it stalls, a box search takes
+    over: boxes of (u, t) are taken in order of their start time, so
+    everything before the popped box is certified negative.
     """
+    t_exit, reached = _march_exit(F, Fabs, noise, t_start, t_end)
+    if t_exit >= 0.0:
+        return t_exit
+    t_start = reached
     Cr = bz.bivariate_restrict_t(F, t_start, t_end)
     boxes = List()
     boxes.append(Cr)

@@ -155,21 +155,35 @@ def _quartic5(g0, g1, g2, g3, g4, u):
 
 @_jit
 def _max_on_piece(g0, g1, g2, g3, g4, lo, hi):
-    """Local maximum of the quartic on [lo, hi] where g' is monotone, or (-inf, lo)."""
+    """Local maximum of the quartic on [lo, hi] where g' is monotone, or (-inf, lo).
+
+    The root of g' is found by Newton steps kept inside a shrinking bracket
+    (a bisection step whenever Newton would leave it).
+    """
     d0, d1, d2, d3 = g1 - g0, g2 - g1, g3 - g2, g4 - g3  # g'/4 in Bernstein form
     flo = _cubic(d0, d1, d2, d3, lo)
     fhi = _cubic(d0, d1, d2, d3, hi)
     if not (flo > 0.0 and fhi < 0.0):  # g' must go + to - for a maximum inside
         return -np.inf, lo
+    e0, e1, e2 = 3.0 * (d1 - d0), 3.0 * (d2 - d1), 3.0 * (d3 - d2)  # (g'/4)' in Bernstein form
+    u = lo - flo * (hi - lo) / (fhi - flo)
     for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if mid <= lo or mid >= hi or hi - lo < 1e-15:
-            break
-        if _cubic(d0, d1, d2, d3, mid) > 0.0:
-            lo = mid
+        f = _cubic(d0, d1, d2, d3, u)
+        if f > 0.0:
+            lo = u
         else:
-            hi = mid
-    u = 0.5 * (lo + hi)
+            hi = u
+        if hi - lo <= 1e-15:
+            break
+        v = 1.0 - u
+        df = e0 * v * v + 2.0 * e1 * u * v + e2 * u * u
+        step = f / df if df < 0.0 else 0.0
+        nxt = u - step
+        if not (lo < nxt < hi) or step == 0.0:
+            nxt = 0.5 * (lo + hi)
+        elif abs(step) <= 2.220446049250313e-16 * max(abs(u), 1e-300):
+            break
+        u = nxt
     return _quartic5(g0, g1, g2, g3, g4, u), u
 
 

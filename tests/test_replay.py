@@ -142,3 +142,30 @@ def test_arm_chain_frames_agree_with_whole_sweep(tmp_path):
     t_in = rows[("b_4", "web")]["intervals"][0][0]
     assert abs(first["time"] - t_in * (time[-1] - time[0])) < 1e-9
     assert rows[("b_1", "web")]["intervals"] == []
+
+
+def test_arm_sweep_intervals_match_the_static_test():
+    """Inside every reported interval the two quadrics overlap; outside they do not."""
+    from mjccd.motion import quadric_at
+    from mjccd.quadric import static_status_matrices
+
+    model = replay.load_model(ROOT / "models" / "arm_obstacle.xml")
+    bounds = replay.bounding_ellipsoids(model, None)
+    with np.load(ROOT / "data" / "arm_traj.npz") as d:
+        keys = d["keyframes"]
+    rows = replay.interval_table(model, bounds, keys[0], keys[1], repeat=0)
+    motions = [replay.chain_motion(model, g, keys[0], keys[1]) for g in bounds.geom_ids]
+    checked = 0
+    for (i, j), row in zip(bounds.pairs, rows):
+        qa, qb = motions[i].quadric(bounds.radii[i]), motions[j].quadric(bounds.radii[j])
+
+        def status(t):
+            return static_status_matrices(quadric_at(*qa, t), quadric_at(*qb, t))
+
+        for t_in, t_out in row["intervals"]:
+            for t in np.linspace(t_in, t_out, 9)[1:-1]:
+                assert status(t) == -1, (row["pair"], t)
+            assert status(t_in - 1e-6) != -1 and status(t_out + 1e-6) != -1, row["pair"]
+            assert status(t_in - 1e-3) == 1 and status(t_out + 1e-3) == 1, row["pair"]
+            checked += 1
+    assert checked == 7

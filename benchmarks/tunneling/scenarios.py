@@ -85,14 +85,24 @@ class Wall(Scenario):
         return data.qpos[0] > 0.0
 
 
+# The cup: a floor, four thin side walls and a lid, all ellipsoids so the guard is exact.  Each part is a
+# disk wider than the cup (semi-axis CUP_SPAN > CUP_HALF * sqrt(2)), so neighbouring parts overlap along
+# every edge and corner: the mid-surfaces of the parts close the box, and a ball can leave it only by
+# passing through a part.  (An open cup measures balls flying out over the rim, not tunneling.)
+CUP_HALF = 0.07      # wall mid-planes at x, y = +-CUP_HALF
+CUP_HEIGHT = 0.16    # floor mid-plane at z = 0, lid mid-plane at z = CUP_HEIGHT
+CUP_SPAN = 0.12      # in-plane semi-axes of every part
+CUP_SKIN = 0.006     # half-thickness of the side walls (floor and lid: 0.008)
+
+
 def cup_xml(timestep, n_balls=3):
-    """(b) Balls resting in a thin-walled heavy cup on a slide joint; the cup is jerked sideways."""
+    """(b) Balls resting in a closed thin-walled heavy cup on a slide joint; the cup is jerked sideways."""
     balls = "\n".join(
         f'''    <body name="ball{k}" pos="{-0.02 + 0.02 * k!r} 0 {0.035 + 0.045 * k!r}">
       <freejoint/>
       <geom name="ball{k}" type="sphere" size="0.02" density="1000" {STIFF}/>
     </body>''' for k in range(n_balls))
-    # cup: a floor and four thin side walls, all ellipsoids so the guard is exact
+    h, H, S, w, mid = CUP_HALF, CUP_HEIGHT, CUP_SPAN, CUP_SKIN, CUP_HEIGHT / 2
     return f"""
 <mujoco model="cup">
   <option timestep="{timestep!r}"/>
@@ -100,11 +110,12 @@ def cup_xml(timestep, n_balls=3):
     <body name="cup" pos="0 0 0">
       <joint name="cup" type="slide" axis="1 0 0"/>
       <inertial pos="0 0 0" mass="1000" diaginertia="10 10 10"/>
-      <geom name="cup_floor" type="ellipsoid" size="0.09 0.09 0.008" pos="0 0 0" {STIFF}/>
-      <geom name="cup_px" type="ellipsoid" size="0.006 0.09 0.09" pos="0.07 0 0.08" {STIFF}/>
-      <geom name="cup_nx" type="ellipsoid" size="0.006 0.09 0.09" pos="-0.07 0 0.08" {STIFF}/>
-      <geom name="cup_py" type="ellipsoid" size="0.09 0.006 0.09" pos="0 0.07 0.08" {STIFF}/>
-      <geom name="cup_ny" type="ellipsoid" size="0.09 0.006 0.09" pos="0 -0.07 0.08" {STIFF}/>
+      <geom name="cup_floor" type="ellipsoid" size="{S} {S} 0.008" pos="0 0 0" {STIFF}/>
+      <geom name="cup_lid" type="ellipsoid" size="{S} {S} 0.008" pos="0 0 {H}" {STIFF}/>
+      <geom name="cup_px" type="ellipsoid" size="{w} {S} {S}" pos="{h} 0 {mid}" {STIFF}/>
+      <geom name="cup_nx" type="ellipsoid" size="{w} {S} {S}" pos="{-h} 0 {mid}" {STIFF}/>
+      <geom name="cup_py" type="ellipsoid" size="{S} {w} {S}" pos="0 {h} {mid}" {STIFF}/>
+      <geom name="cup_ny" type="ellipsoid" size="{S} {w} {S}" pos="0 {-h} {mid}" {STIFF}/>
     </body>
 {balls}
   </worldbody>
@@ -112,7 +123,7 @@ def cup_xml(timestep, n_balls=3):
 
 
 class Cup(Scenario):
-    """(b) A cup jerked along +x at ``speed`` m/s for 30 ms, then back: tunneled when a ball leaves the cup."""
+    """(b) A closed cup jerked along +x at ``speed`` m/s for 30 ms, then back: tunneled when a ball leaves it."""
 
     name = "cup"
     duration = 0.3
@@ -138,8 +149,10 @@ class Cup(Scenario):
         data.qvel[0] = self._cup_v(data.time)
 
     def tunneled(self, data):
-        balls = data.qpos[1:].reshape(-1, 7)[:, :2] - np.array([data.qpos[0], 0.0])
-        return bool(np.any(np.abs(balls) > 0.07))
+        """A ball centre outside the closed cup (beyond a wall's, the floor's or the lid's mid-surface)."""
+        balls = data.qpos[1:].reshape(-1, 7)[:, :3] - np.array([data.qpos[0], 0.0, 0.0])
+        return bool(np.any(np.abs(balls[:, :2]) > CUP_HALF) or np.any(balls[:, 2] < 0.0)
+                    or np.any(balls[:, 2] > CUP_HEIGHT))
 
 
 BOXING = ROOT / "models" / "boxing.xml"

@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.mujoco.monitor import CCDMonitor, StepCheck
 from mjccd.mujoco.motions import capture
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -63,16 +63,17 @@ class GuardedStepper:
     Each call takes an ordinary ``mj_step`` first.  When the exact CCD of that
     step finds no new contact (no guarded pair that was separate at the start
     touches during the step), the step is kept as it is, so the result is
-    bit-identical to plain stepping.  Otherwise the full physics state
-    (``mjSTATE_INTEGRATION``: positions, velocities, activations, warm start,
-    controls, applied forces, mocap, time) is restored, MuJoCo advances with a
-    reduced timestep to the first contact (a hair past it, ``overshoot`` of
-    the step, so that MuJoCo's own collision detection sees the touching pair
-    and its contact model takes over), takes one short step in contact
-    (``contact_step`` of the timestep, where the contact removes most of the
-    approach speed) and then the rest of the step, every piece checked again.  At most ``max_rechecks`` clamps per step; after
-    that the remaining time is one unguarded MuJoCo step (reported as
-    ``exhausted``).  Everything is deterministic.
+    bit-identical to plain stepping.  Otherwise the full physics state (``mjSTATE_INTEGRATION``:
+    positions, velocities, activations, warm start, controls, applied forces,
+    mocap, time) is restored, MuJoCo advances with a reduced timestep to the
+    first such contact (a hair past it, ``overshoot`` of the step, so that
+    MuJoCo's own collision detection sees the touching pair and its contact
+    model takes over), takes one short step in contact (``contact_step`` of
+    the timestep, where the contact removes most of the approach speed) and
+    then the rest of the step, every piece checked again.  At most
+    ``max_rechecks`` clamps per step; after that the remaining time is one
+    unguarded MuJoCo step (reported as ``exhausted``).  Everything is
+    deterministic.
 
     Args:
         model, data: the simulation; ``data`` is advanced by :meth:`step`.
@@ -81,12 +82,13 @@ class GuardedStepper:
         pairs: (body, body) names or ids to guard; default: every pair MuJoCo itself collides.
         motion: "rigid", "affine" or "chain" (see :class:`~mjccd.mujoco.CCDMonitor`).
         max_rechecks: clamps allowed per step (>= 0; 0 only reports, never clamps).
-        overshoot: how far past the contact instant a clamp goes, as a fraction of the timestep.
+        overshoot: how far past the contact instant a clamp goes, as a fraction of the timestep
+            (4x further for each repeated clamp of the same pair within one step).
         contact_step: length of the step taken right after a clamp, as a fraction of the timestep.
         on_clamp: called with each :class:`~mjccd.mujoco.StepContact` that causes a clamp.
     """
 
-    def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=8,
+    def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=32,
                  overshoot=1e-3, contact_step=0.05, on_clamp=None):
         self.monitor = CCDMonitor(model, data, ellipsoids, pairs=pairs, motion=motion,
                                   report_overlapping=False)
@@ -102,6 +104,9 @@ class GuardedStepper:
         self.model, self.data, self.on_clamp = model, data, on_clamp
         self.ellipsoids, self.motion = ellipsoids, motion
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+        # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
+        self._fast = StepCheck(self.monitor) if self.monitor._scene is not None else None
+        self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
         self.last_report = None
         self.clamps_total = 0
 
@@ -113,9 +118,30 @@ class GuardedStepper:
     def step(self, nstep=1):
         """Advance ``nstep`` timesteps, each guarded; the :class:`GuardReport` of the last one."""
         n = _positive(nstep, "nstep", integer=True)
+        m, d = self.model, self.data
         for _ in range(n):
-            self.guarded_step(lambda: mujoco.mj_step(self.model, self.data))
+            self.guarded_step(lambda: mujoco.mj_step(m, d))
         return self.last_report
+
+    # ------------------------------------------------------------ checks
+
+    def _begin(self, d):
+        if self._fast is not None:
+            self._fast.begin(d)
+            return None
+        return capture(d)
+
+    def _hit(self, d, start):
+        """Earliest new contact of the step just taken (from ``start``), or None."""
+        fast = self._fast
+        if fast is not None:
+            fast.end(d)
+            if not fast.may_touch():
+                return None
+            return fast.first((float(self._state0[0]), float(d.time)))
+        return self.monitor.check(start, capture(d))
+
+    # ------------------------------------------------------------ stepping
 
     def guarded_step(self, full_step, finish=None):
         """One guarded timestep whose first trial is ``full_step()`` (e.g. dm-control's own step).
@@ -124,25 +150,37 @@ class GuardedStepper:
         uses it to bring the derived quantities up to date with ``mj_step1``).
         """
         m, d = self.model, self.data
+        mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
+        start = self._begin(d)
+        full_step()
+        hit = self._hit(d, start)
+        if hit is None or self.max_rechecks == 0:
+            dt = m.opt.timestep
+            report = self._plain.get(dt)
+            if report is None:
+                report = self._plain[dt] = GuardReport((float(dt),), (), 0, hit is not None)
+            if hit is not None:
+                report = GuardReport((float(dt),), (), 0, True)
+            self.last_report = report
+            return report
+        return self._clamped(hit, finish)
+
+    def _clamped(self, hit, finish):
+        """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece."""
+        m, d = self.model, self.data
         dt = float(m.opt.timestep)
         remaining = length = dt
         substeps, clamps = [], []
         exhausted = False
-        first = True
         rollbacks = 0
         try:
             while True:
-                mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
-                s0 = capture(d)
-                if first:
-                    full_step()
-                    first = False
-                else:
-                    m.opt.timestep = length
-                    mujoco.mj_step(m, d)
-                hit = self.monitor.check(s0, capture(d))  # earliest new contact, or None
                 if hit is not None and len(clamps) < self.max_rechecks:
-                    h = hit.fraction * length + self.overshoot * dt
+                    # a pair clamped again in the same step: the redone short step landed short of the
+                    # contact (the lerp that the CCD follows runs ahead of a shorter MuJoCo step when the
+                    # pair accelerates towards contact), so each repeat goes 4x further past the contact
+                    again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids)
+                    h = hit.fraction * length + self.overshoot * dt * 4.0 ** again
                     clamps.append(hit)
                     if h < length:
                         # redo the trial: up to the contact, then a short step in contact
@@ -153,6 +191,7 @@ class GuardedStepper:
                         substeps.append(h)
                         remaining -= h
                         length = min(remaining, self.contact_step * dt)
+                        hit = self._piece(length)
                         continue
                 elif hit is not None:
                     exhausted = True
@@ -161,6 +200,7 @@ class GuardedStepper:
                     break
                 remaining -= length
                 length = remaining
+                hit = self._piece(length)
         finally:
             m.opt.timestep = dt
         if rollbacks and finish is not None:
@@ -171,6 +211,15 @@ class GuardedStepper:
             for c in clamps:
                 self.on_clamp(c)
         return self.last_report
+
+    def _piece(self, length):
+        """Save the state, take one MuJoCo step of ``length`` seconds, and check it."""
+        m, d = self.model, self.data
+        mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
+        start = self._begin(d)
+        m.opt.timestep = length
+        mujoco.mj_step(m, d)
+        return self._hit(d, start)
 
 
 class GuardedWrapper(dm_env.Environment):

@@ -9,10 +9,12 @@ from mjccd.motion import Static
 from mjccd.quadric import Ellipsoid, static_status_pose
 from mjccd.scene import Scene
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, motions_between,
-                                  sweep_sphere)
+from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, ellipsoid_poses_into,
+                                  motions_between, pairs_may_touch, sweep_sphere)
 
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
+KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
+                   | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
 
 
 @dataclass(frozen=True, eq=False)
@@ -313,3 +315,88 @@ class CCDMonitor:
                 first, t_max = c, c.fraction
         contacts.sort(key=lambda c: c.fraction)
         return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved)
+
+
+class StepCheck:
+    """The lean per-step check behind guarded stepping (rigid and affine motions).
+
+    ``begin(data)`` before a step and ``end(data)`` after it record the
+    ellipsoid poses at both ends (forward kinematics on private ``MjData``,
+    poses written into preallocated arrays by one compiled call; the poses of
+    a state seen at the last ``end`` or ``begin`` are reused).  ``may_touch()``
+    is a conservative compiled test (swept spheres, then separating slabs);
+    only when it cannot clear every pair does ``first()`` run the exact
+    batched check, :meth:`mjccd.scene.Scene.step`, on the same poses: so the
+    answer is the same as :meth:`CCDMonitor.check` of the two states.
+    """
+
+    def __init__(self, monitor):
+        if monitor._scene is None:
+            raise ValueError("monitor: the step check needs a rigid or affine motion and at least one pair")
+        m = monitor.model
+        self.monitor, self.model = monitor, m
+        n = len(monitor.ellipsoids.radii)
+        size = mujoco.mj_stateSize(m, KINEMATIC_STATE)
+        self._key = np.empty(size)
+        # slot: [private data, key bytes of its state (None: empty), poses]
+        self._slots = [[mujoco.MjData(m), None, np.empty((n, 7))] for _ in range(2)]
+        self._start = self._end = 0
+        self.body_ids = np.ascontiguousarray(monitor.body_ids, dtype=np.int64)
+        self.positions = np.ascontiguousarray(monitor.ellipsoids.positions, dtype=float)
+        self.quaternions = np.ascontiguousarray(monitor.ellipsoids.quaternions, dtype=float)
+        self.radii = np.ascontiguousarray(monitor.ellipsoids.radii, dtype=float)
+        self.rmax = np.ascontiguousarray(self.radii.max(axis=1))
+        self.pairs = np.ascontiguousarray(monitor.pairs, dtype=np.int64)
+        self.affine = monitor.motion == "affine"
+
+    def _load(self, data, keep):
+        """Index of a slot holding the poses of ``data``'s kinematic state; never overwrites slot ``keep``."""
+        m = self.model
+        key = self._key
+        mujoco.mj_getState(m, data, key, KINEMATIC_STATE)
+        kb = key.tobytes()
+        slots = self._slots
+        for idx in (keep, 1 - keep):
+            if slots[idx][1] == kb:
+                return idx
+        idx = 1 - keep
+        slot = slots[idx]
+        kd = slot[0]
+        mujoco.mj_setState(m, kd, key, KINEMATIC_STATE)
+        mujoco.mj_kinematics(m, kd)
+        ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slot[2])
+        slot[1] = kb
+        return idx
+
+    def begin(self, data):
+        """Record the state at the start of a step."""
+        self._start = self._load(data, self._end)
+
+    def end(self, data):
+        """Record the state at the end of the step begun last."""
+        self._end = self._load(data, self._start)
+
+    @property
+    def poses(self):
+        """(start, end) (N, 7) ellipsoid poses of the last step (internal buffers: copy to keep)."""
+        return self._slots[self._start][2], self._slots[self._end][2]
+
+    def may_touch(self):
+        """False when no pair can touch during the step (cheap and conservative)."""
+        p0, p1 = self.poses
+        return pairs_may_touch(self.affine, self.radii, self.rmax, p0, p1, self.pairs)
+
+    def first(self, times=None):
+        """Earliest new contact (:class:`StepContact` or None) of the step: the exact batched check.
+
+        ``times`` (start time, end time) gives the contact its simulation time.
+        """
+        mon = self.monitor
+        p0, p1 = self.poses
+        c = mon._scene.step(p0, p1, new_contacts_only=True).first
+        if c is None:
+            return None
+        i, j = self.pairs[c.pair]
+        t0, t1 = (None, None) if times is None else times
+        return mon._contact(State(None, None, None, t0), State(None, None, None, t1), i, j, c.time, c.point,
+                            c.normal, p0)

@@ -2,6 +2,7 @@
 from dataclasses import dataclass
 
 import mujoco
+import numba
 import numpy as np
 
 from mjccd import bernstein as bz
@@ -90,13 +91,162 @@ class Kinematics:
 
     def ellipsoid_poses(self, state, body_ids, positions, quaternions):
         """(N, 7) world poses [x, y, z, qw, qx, qy, qz] of ellipsoids fixed in bodies."""
-        xpos, xquat = self.body_poses(state)
-        qb = xquat[body_ids]
+        d = self.data
+        d.qpos[:] = state.qpos
+        if self.model.nmocap:
+            d.mocap_pos[:] = state.mocap_pos
+            d.mocap_quat[:] = state.mocap_quat
+        mujoco.mj_kinematics(self.model, d)
         out = np.empty((len(body_ids), 7))
-        out[:, :3] = xpos[body_ids] + quat_rotate(qb, positions)
-        q = quat_mul(qb, quaternions)
-        out[:, 3:] = q / np.linalg.norm(q, axis=1)[:, None]
+        ellipsoid_poses_into(d.xpos, d.xquat, np.ascontiguousarray(body_ids, dtype=np.int64),
+                             np.ascontiguousarray(positions, dtype=float),
+                             np.ascontiguousarray(quaternions, dtype=float), out)
         return out
+
+
+@numba.njit(cache=True, nogil=True)
+def ellipsoid_poses_into(xpos, xquat, body_ids, positions, quaternions, out):
+    """Fill ``out`` (N, 7) with the world poses of ellipsoids fixed in bodies (body poses xpos, xquat).
+
+    The one routine every path of the monitor and the guard uses, so equal
+    body poses give bit-identical ellipsoid poses.
+    """
+    for e in range(body_ids.shape[0]):
+        b = body_ids[e]
+        w, x, y, z = xquat[b, 0], xquat[b, 1], xquat[b, 2], xquat[b, 3]
+        vx, vy, vz = positions[e, 0], positions[e, 1], positions[e, 2]
+        tx = 2.0 * (y * vz - z * vy)
+        ty = 2.0 * (z * vx - x * vz)
+        tz = 2.0 * (x * vy - y * vx)
+        out[e, 0] = xpos[b, 0] + (vx + w * tx + (y * tz - z * ty))
+        out[e, 1] = xpos[b, 1] + (vy + w * ty + (z * tx - x * tz))
+        out[e, 2] = xpos[b, 2] + (vz + w * tz + (x * ty - y * tx))
+        bw, bx, by, bz_ = quaternions[e, 0], quaternions[e, 1], quaternions[e, 2], quaternions[e, 3]
+        qw = w * bw - x * bx - y * by - z * bz_
+        qx = w * bx + x * bw + y * bz_ - z * by
+        qy = w * by - x * bz_ + y * bw + z * bx
+        qz = w * bz_ + x * by - y * bx + z * bw
+        n = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        out[e, 3] = qw / n
+        out[e, 4] = qx / n
+        out[e, 5] = qy / n
+        out[e, 6] = qz / n
+
+
+@numba.njit(cache=True, nogil=True)
+def _support(radii, pose, e, nx, ny, nz):
+    """Support value sqrt(sum_k (r_k (R[:, k] . n))^2) of ellipsoid e (centred) in direction n."""
+    w, x, y, z = pose[e, 3], pose[e, 4], pose[e, 5], pose[e, 6]
+    # columns of the rotation matrix of (w, x, y, z), dotted with n
+    c0 = (1.0 - 2.0 * (y * y + z * z)) * nx + 2.0 * (x * y + w * z) * ny + 2.0 * (x * z - w * y) * nz
+    c1 = 2.0 * (x * y - w * z) * nx + (1.0 - 2.0 * (x * x + z * z)) * ny + 2.0 * (y * z + w * x) * nz
+    c2 = 2.0 * (x * z + w * y) * nx + 2.0 * (y * z - w * x) * ny + (1.0 - 2.0 * (x * x + y * y)) * nz
+    a = radii[e, 0] * c0
+    b = radii[e, 1] * c1
+    c = radii[e, 2] * c2
+    return np.sqrt(a * a + b * b + c * c)
+
+
+@numba.njit(cache=True, nogil=True)
+def _swept_support(affine, radii, rmax, p0, p1, e, nx, ny, nz):
+    """Upper bound, over the whole step, of ellipsoid e's support in direction n (about its centre)."""
+    same = True
+    for m in range(3, 7):
+        if p0[e, m] != p1[e, m]:
+            same = False
+    if not same:
+        same = True
+        for m in range(3, 7):
+            if p0[e, m] != -p1[e, m]:
+                same = False
+    if same:  # constant orientation: exact support
+        return _support(radii, p0, e, nx, ny, nz)
+    if affine:  # the shape matrix is lerped: its support is convex in t
+        return max(_support(radii, p0, e, nx, ny, nz), _support(radii, p1, e, nx, ny, nz))
+    return rmax[e]
+
+
+@numba.njit(cache=True, nogil=True)
+def _slab_clear(affine, radii, rmax, p0, p1, i, j, nx, ny, nz, tol):
+    """True when the plane family normal to n separates ellipsoids i and j during the whole step.
+
+    The centre gap along n is linear in t (centres are lerped), so its minimum is
+    at an end; it must exceed both supports' bounds over the step.
+    """
+    g0 = (p0[j, 0] - p0[i, 0]) * nx + (p0[j, 1] - p0[i, 1]) * ny + (p0[j, 2] - p0[i, 2]) * nz
+    g1 = (p1[j, 0] - p1[i, 0]) * nx + (p1[j, 1] - p1[i, 1]) * ny + (p1[j, 2] - p1[i, 2]) * nz
+    if g0 < 0.0:
+        g0, g1, nx, ny, nz = -g0, -g1, -nx, -ny, -nz
+    gap = min(g0, g1)
+    if gap <= tol:
+        return False
+    return gap - _swept_support(affine, radii, rmax, p0, p1, i, nx, ny, nz) \
+        - _swept_support(affine, radii, rmax, p0, p1, j, nx, ny, nz) > tol
+
+
+@numba.njit(cache=True, nogil=True)
+def _thin_axis(radii, pose, e):
+    """World direction of ellipsoid e's shortest semi-axis."""
+    k = 0
+    if radii[e, 1] < radii[e, k]:
+        k = 1
+    if radii[e, 2] < radii[e, k]:
+        k = 2
+    w, x, y, z = pose[e, 3], pose[e, 4], pose[e, 5], pose[e, 6]
+    if k == 0:
+        return 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)
+    if k == 1:
+        return 2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)
+    return 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+
+
+@numba.njit(cache=True, nogil=True)
+def pairs_may_touch(affine, radii, rmax, p0, p1, pairs):
+    """False only when no pair can touch during the step (poses p0 -> p1, centres lerped); conservative.
+
+    Per pair: the swept bounding spheres (radius = largest semi-axis), then
+    planes normal to the centre line (at both ends) and to each ellipsoid's
+    thinnest axis, with support bounds that hold over the whole step.  A
+    pair cleared here has no contact at any t in [0, 1], so whatever the exact
+    check would find, it finds nothing for it.
+    """
+    for k in range(pairs.shape[0]):
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        scale = rmax[i] + rmax[j]
+        tol = 1e-9 * scale
+        # swept spheres: |d0 + t v| > reach on [0, 1]
+        d0x, d0y, d0z = p0[j, 0] - p0[i, 0], p0[j, 1] - p0[i, 1], p0[j, 2] - p0[i, 2]
+        vx, vy, vz = p1[j, 0] - p1[i, 0] - d0x, p1[j, 1] - p1[i, 1] - d0y, p1[j, 2] - p1[i, 2] - d0z
+        reach = scale * (1.0 + 1e-9)
+        a = vx * vx + vy * vy + vz * vz
+        b = 2.0 * (d0x * vx + d0y * vy + d0z * vz)
+        c = d0x * d0x + d0y * d0y + d0z * d0z - reach * reach
+        if c > 0.0:
+            if b >= 0.0 or a == 0.0:
+                continue
+            tm = -b / (2.0 * a)
+            if tm >= 1.0:
+                if a + b + c > 0.0:
+                    continue
+            elif c - b * b / (4.0 * a) > 0.0:
+                continue
+        # planes
+        n0 = np.sqrt(d0x * d0x + d0y * d0y + d0z * d0z)
+        if n0 > 0.0 and _slab_clear(affine, radii, rmax, p0, p1, i, j, d0x / n0, d0y / n0, d0z / n0, tol):
+            continue
+        e1x, e1y, e1z = d0x + vx, d0y + vy, d0z + vz
+        n1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
+        if n1 > 0.0 and _slab_clear(affine, radii, rmax, p0, p1, i, j, e1x / n1, e1y / n1, e1z / n1, tol):
+            continue
+        ax, ay, az = _thin_axis(radii, p0, i)
+        if _slab_clear(affine, radii, rmax, p0, p1, i, j, ax, ay, az, tol):
+            continue
+        ax, ay, az = _thin_axis(radii, p0, j)
+        if _slab_clear(affine, radii, rmax, p0, p1, i, j, ax, ay, az, tol):
+            continue
+        return True
+    return False
 
 
 # ---------------------------------------------------------------- joint-space interpolation

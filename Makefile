@@ -22,5 +22,7 @@ bench: $(STAMP)
 	$(PY) -m pip install -q -e ".[bench]"
 	$(VENV)/bin/mjccd bench core
 
+# numba's on-disk cache does not notice edits to other modules a kernel calls: clear it after editing kernels
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
+	find mjccd -name '*.nbi' -delete -o -name '*.nbc' -delete

@@ -230,3 +230,72 @@ def test_clamp_goes_to_entry_not_exit():
     entry = (-(WALL_HALF + BALL) - x0) / (v * dt)
     assert len(report.clamps) == 1 and abs(report.clamps[0].fraction - entry) < 1e-6
     assert data.qvel[0] < 0.0 and not inside_wall(data.qpos)
+
+
+# ------------------------------------------------------------ the lean step check
+
+
+BOX = """
+<mujoco>
+  <option timestep="0.004" gravity="0 0 -9.81"/>
+  <worldbody>
+    <geom name="floor" type="ellipsoid" size="0.5 0.5 0.01" pos="0 0 0"/>
+    <geom name="side" type="ellipsoid" size="0.01 0.5 0.3" pos="0.3 0 0.2"/>
+    <body name="a" pos="0 0 0.2"><freejoint/><geom type="ellipsoid" size="0.05 0.03 0.02"/></body>
+    <body name="b" pos="0.1 0.05 0.3"><freejoint/><geom type="ellipsoid" size="0.02 0.04 0.06"/></body>
+    <body name="c" pos="-0.1 0 0.15"><freejoint/><geom type="sphere" size="0.03"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+def test_step_check_prefilter_never_hides_a_contact(motion):
+    # tumbling ellipsoids on a floor and against a wall: whenever the compiled prefilter clears a
+    # step, the monitor's exact check of the same two states finds no new contact either, and
+    # otherwise the lean check's contact is the monitor's
+    from mjccd.mujoco import CCDMonitor
+    from mjccd.mujoco.guard import StepCheck
+    from mjccd.mujoco.motions import capture
+
+    model = mujoco.MjModel.from_xml_string(BOX)
+    rng = np.random.default_rng(3)
+    cleared = hits = 0
+    for run in range(3):
+        data = mujoco.MjData(model)
+        data.qvel[:] = rng.normal(0.0, 2.0, model.nv)
+        data.qvel[0::6] += 1.5  # towards the side wall
+        mujoco.mj_forward(model, data)
+        ell = fit_model(model, per="geom")
+        monitor = CCDMonitor(model, data, ell, motion=motion, report_overlapping=False)
+        check = StepCheck(monitor)
+        for _ in range(150):
+            s0 = capture(data)
+            check.begin(data)
+            mujoco.mj_step(model, data)
+            s1 = capture(data)
+            may = check.end_may_touch(data)
+            p0, p1 = check.poses
+            assert np.array_equal(p0, monitor._kin.ellipsoid_poses(s0, monitor.body_ids, ell.positions,
+                                                                    ell.quaternions))
+            assert np.array_equal(p1, monitor._kin.ellipsoid_poses(s1, monitor.body_ids, ell.positions,
+                                                                    ell.quaternions))
+            exact = monitor.check(s0, s1)
+            lean = check.first((s0.time, s1.time))
+            if not may:
+                cleared += 1
+                assert exact is None
+            if exact is None:
+                assert lean is None
+            else:
+                hits += 1
+                assert lean is not None and lean.fraction == exact.fraction and lean.ellipsoids == exact.ellipsoids
+                assert lean.time == exact.time
+    assert cleared > 50 and hits > 3
+
+
+def test_guard_names_are_exported():
+    import mjccd.mujoco as mm
+
+    assert mm.GuardedStepper is GuardedStepper and mm.GuardedWrapper is GuardedWrapper
+    assert mm.GuardReport.__name__ == "GuardReport" and "GuardedStepper" in mm.__all__

@@ -1,6 +1,9 @@
 """Tunneling count and cost per simulated second: plain MuJoCo, smaller timesteps, guarded stepping.
 
 Usage: python benchmarks/tunneling/run.py [--runs N] [--quick] [--out docs/tunneling_benchmarks.md]
+                                          [--bench docs/benchmarks.md]
+
+Writes the table to ``--out`` and, as its own marked section ("tunneling"), into ``--bench``.
 """
 import argparse
 import os
@@ -15,6 +18,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from scenarios import ROOT, Boxing, Cup, Wall  # noqa: E402
 
+from mjccd.bench.report import write_section  # noqa: E402
 from mjccd.mujoco.guard import GuardedStepper  # noqa: E402
 
 MODES = ("plain", "dt/2", "dt/5", "dt/10", "guarded")
@@ -51,7 +55,8 @@ def simulate(cls, dt, speed, mode, seed):
 
 
 def table(runs, cases):
-    rows = []
+    """Rows of formatted cells, and the raw medians {(scenario, dt, speed, mode): ms per simulated second}."""
+    rows, costs = [], {}
     for cls, dt, speeds in cases:
         simulate(cls, dt, speeds[0], "guarded", 0)  # compile and warm the caches
         for speed in speeds:
@@ -60,13 +65,14 @@ def table(runs, cases):
                 res = [simulate(cls, dt, speed, mode, seed) for seed in range(runs)]
                 tun = sum(r[0] for r in res)
                 cost = np.median([r[1] for r in res]) * 1e3
+                costs[cls.name, dt, speed, mode] = cost
                 row.append(f"{tun}/{runs} · {cost:.3g}")
             rows.append(row)
             print(" | ".join(row), flush=True)
-    return rows
+    return rows, costs
 
 
-def markdown(rows, runs, command, elapsed):
+def markdown(rows, costs, runs, command, elapsed):
     head = ["scenario", "dt (ms)", "speed (m/s)"] + list(MODES)
     lines = ["# Tunneling benchmarks", "",
              "Each cell: runs that tunneled / runs · median CPU milliseconds per simulated second.",
@@ -74,13 +80,20 @@ def markdown(rows, runs, command, elapsed):
              "`dt/k` is plain MuJoCo with the timestep divided by k; `guarded` is "
              "`mjccd.mujoco.guard.GuardedStepper` at the scenario timestep.",
              "Scenarios (`benchmarks/tunneling/scenarios.py`): `wall` a 2 cm ball thrown at a 2 cm ellipsoid "
-             "wall (tunneled: the ball centre ever beyond the wall's mid-plane); `cup` three balls in a "
-             "thin-walled cup jerked sideways for 30 ms (tunneled: a ball outside the cup walls); `boxing` "
+             "wall (tunneled: the ball centre ever beyond the wall's mid-plane); `cup` three balls in a closed "
+             "thin-walled cup (floor, four walls and a lid, ellipsoids overlapping at every edge) jerked "
+             "sideways for 30 ms (tunneled: a ball centre outside the cup); `boxing` "
              "a's right arm swung about the shoulder through b's head in models/boxing.xml, arm and head "
              "colliding through their bounding ellipsoids (tunneled: the fist past the head's centre before "
              "MuJoCo saw any arm-head contact).", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
+    ratios = [(dt, speed, costs[name, dt, speed, "guarded"] / costs[name, dt, speed, "plain"])
+              for (name, dt, speed, mode) in costs if name == "boxing" and mode == "plain"]
+    if ratios:
+        dt, speed, ratio = min(ratios, key=lambda r: r[1])
+        lines += ["", f"Boxing at the normal speed ({speed:g} m/s): guarded stepping costs "
+                      f"{ratio:.2f}x plain stepping."]
     lines += ["", f"Command: `{command}` ({elapsed:.0f} s).", "",
               f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
               f"Python {platform.python_version()}, MuJoCo {mujoco.__version__}, {platform.system()}.", ""]
@@ -93,17 +106,24 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="one timestep and speed per scenario")
     ap.add_argument("--out", default=str(ROOT / "docs" / "tunneling_benchmarks.md"),
                     help="markdown file to write ('' for none)")
+    ap.add_argument("--bench", default=str(ROOT / "docs" / "benchmarks.md"),
+                    help="benchmark report whose 'tunneling' section gets the table ('' for none)")
     args = ap.parse_args(argv)
     if args.runs < 1:
         ap.error(f"--runs: expected a positive count, got {args.runs}")
     cases = [(c, dt, s[-1:]) for c, dt, s in CASES[::2]] if args.quick else CASES
     t0 = time.perf_counter()
-    rows = table(args.runs, cases)
-    text = markdown(rows, args.runs, "python benchmarks/tunneling/run.py " + " ".join(argv or sys.argv[1:]),
+    rows, costs = table(args.runs, cases)
+    text = markdown(rows, costs, args.runs, "python benchmarks/tunneling/run.py " + " ".join(argv or sys.argv[1:]),
                     time.perf_counter() - t0)
     print(text)
     if args.out:
         pathlib.Path(args.out).write_text(text)
+    if args.bench:
+        section = text.replace("# Tunneling benchmarks", "## Tunneling: plain, smaller timesteps, guarded stepping", 1)
+        section += "\nGuarded stepping: [guarded-stepping.md](guarded-stepping.md); this table also in " \
+                   "[tunneling_benchmarks.md](tunneling_benchmarks.md).\n"
+        write_section(args.bench, "tunneling", section)
 
 
 if __name__ == "__main__":

@@ -1,12 +1,13 @@
-"""MuJoCo integration: fitted ellipsoids on bodies, exact motions between steps, the step monitor."""
+"""MuJoCo integration: fitted ellipsoids on bodies, exact motions between steps, the step monitor, guarded stepping."""
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, load_ellipsoids
 from mjccd.mujoco.monitor import (CCDMonitor, StepContact, StepReport, default_pairs, excluded_body_pairs,
                                   pairs_from_bodies)
 from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, capture, interpolate_qpos,
                                   motions_between)
+from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, GuardReport, geom_ellipsoids
 
 __all__ = [
-    "CCDMonitor", "EllipsoidSet", "Kinematics", "MOTIONS", "State", "StepContact", "StepReport",
+    "CCDMonitor", "EllipsoidSet", "GuardReport", "GuardedStepper", "GuardedWrapper", "geom_ellipsoids", "Kinematics", "MOTIONS", "State", "StepContact", "StepReport",
     "body_label", "capture", "default_pairs", "excluded_body_pairs", "interpolate_qpos",
     "load_ellipsoids", "motions_between", "pairs_from_bodies",
 ]

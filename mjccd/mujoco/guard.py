@@ -6,7 +6,7 @@ import mujoco
 import numpy as np
 
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.monitor import CCDMonitor, StepCheck
+from mjccd.mujoco.monitor import CCDMonitor, StepCheck  # noqa: F401  (StepCheck re-exported)
 from mjccd.mujoco.motions import capture
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -135,8 +135,7 @@ class GuardedStepper:
         """Earliest new contact of the step just taken (from ``start``), or None."""
         fast = self._fast
         if fast is not None:
-            fast.end(d)
-            if not fast.may_touch():
+            if not fast.end_may_touch(d):
                 return None
             return fast.first((float(self._state0[0]), float(d.time)))
         return self.monitor.check(start, capture(d))
@@ -151,19 +150,32 @@ class GuardedStepper:
         """
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
-        start = self._begin(d)
-        full_step()
-        hit = self._hit(d, start)
+        fast = self._fast
+        if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
+            fast.begin(d)
+            full_step()
+            if not fast.end_may_touch(d):
+                report = self._plain.get(m.opt.timestep)
+                if report is None:
+                    report = self._plain_report(m.opt.timestep)
+                self.last_report = report
+                return report
+            hit = fast.first((float(self._state0[0]), float(d.time)))
+        else:
+            start = capture(d)
+            full_step()
+            hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = m.opt.timestep
-            report = self._plain.get(dt)
-            if report is None:
-                report = self._plain[dt] = GuardReport((float(dt),), (), 0, hit is not None)
-            if hit is not None:
-                report = GuardReport((float(dt),), (), 0, True)
+            report = GuardReport((float(dt),), (), 0, True) if hit is not None else (
+                self._plain.get(dt) or self._plain_report(dt))
             self.last_report = report
             return report
         return self._clamped(hit, finish)
+
+    def _plain_report(self, dt):
+        report = self._plain[dt] = GuardReport((float(dt),), (), 0, False)
+        return report
 
     def _clamped(self, hit, finish):
         """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece."""

@@ -10,7 +10,7 @@ from mjccd.quadric import Ellipsoid, static_status_pose
 from mjccd.scene import Scene
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, ellipsoid_poses_into,
-                                  motions_between, pairs_may_touch, sweep_sphere)
+                                  motions_between, pairs_may_touch, poses_then_may_touch, sweep_sphere)
 
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
@@ -344,37 +344,54 @@ class StepCheck:
         self.body_ids = np.ascontiguousarray(monitor.body_ids, dtype=np.int64)
         self.positions = np.ascontiguousarray(monitor.ellipsoids.positions, dtype=float)
         self.quaternions = np.ascontiguousarray(monitor.ellipsoids.quaternions, dtype=float)
+        self._local = np.ascontiguousarray(np.hstack([self.positions, self.quaternions]))
         self.radii = np.ascontiguousarray(monitor.ellipsoids.radii, dtype=float)
         self.rmax = np.ascontiguousarray(self.radii.max(axis=1))
         self.pairs = np.ascontiguousarray(monitor.pairs, dtype=np.int64)
         self.affine = monitor.motion == "affine"
 
-    def _load(self, data, keep):
-        """Index of a slot holding the poses of ``data``'s kinematic state; never overwrites slot ``keep``."""
-        m = self.model
+    def _key_of(self, data):
         key = self._key
-        mujoco.mj_getState(m, data, key, KINEMATIC_STATE)
-        kb = key.tobytes()
-        slots = self._slots
-        for idx in (keep, 1 - keep):
-            if slots[idx][1] == kb:
-                return idx
-        idx = 1 - keep
-        slot = slots[idx]
+        mujoco.mj_getState(self.model, data, key, KINEMATIC_STATE)
+        return key.tobytes()
+
+    def _fill(self, idx, kb):
+        slot = self._slots[idx]
         kd = slot[0]
-        mujoco.mj_setState(m, kd, key, KINEMATIC_STATE)
-        mujoco.mj_kinematics(m, kd)
-        ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slot[2])
+        mujoco.mj_setState(self.model, kd, self._key, KINEMATIC_STATE)
+        mujoco.mj_kinematics(self.model, kd)
         slot[1] = kb
-        return idx
+        return kd
 
     def begin(self, data):
         """Record the state at the start of a step."""
-        self._start = self._load(data, self._end)
+        kb = self._key_of(data)
+        slots = self._slots
+        if slots[self._end][1] == kb:
+            self._start = self._end
+        elif slots[self._start][1] != kb:
+            idx = 1 - self._end
+            kd = self._fill(idx, kb)
+            ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
+            self._start = idx
 
     def end(self, data):
         """Record the state at the end of the step begun last."""
-        self._end = self._load(data, self._start)
+        self.end_may_touch(data)
+
+    def end_may_touch(self, data):
+        """:meth:`end`, then :meth:`may_touch` (one compiled call when the end state is new)."""
+        kb = self._key_of(data)
+        slots = self._slots
+        start = self._start
+        if slots[start][1] == kb:
+            self._end = start
+            return self.may_touch()
+        idx = 1 - start
+        kd = self._fill(idx, kb)
+        self._end = idx
+        return poses_then_may_touch(kd.xpos, kd.xquat, self.body_ids, self._local, self.radii, self.rmax,
+                                    slots[start][2], slots[idx][2], self.pairs, self.affine)
 
     @property
     def poses(self):

@@ -401,3 +401,11 @@ def sweep_sphere(motion):
     ctrl = np.stack([bz.elevate(n.copy(), deg + 1 - len(n)) for n in num], axis=1) / den[:, None]
     centre = 0.5 * (ctrl.min(axis=0) + ctrl.max(axis=0))
     return centre, float(np.sqrt(np.max(np.sum((ctrl - centre) ** 2, axis=1))))
+
+
+@numba.njit(cache=True, nogil=True)
+def poses_then_may_touch(xpos, xquat, body_ids, local, radii, rmax, p0, p1, pairs, affine):
+    """:func:`ellipsoid_poses_into` for the end poses ``p1`` (``local`` = [positions, quaternions]),
+    then :func:`pairs_may_touch` from ``p0``: the compiled part of a step check in one call."""
+    ellipsoid_poses_into(xpos, xquat, body_ids, local[:, :3], local[:, 3:], p1)
+    return pairs_may_touch(affine, radii, rmax, p0, p1, pairs)

@@ -7,6 +7,7 @@ import numpy as np
 
 from mjccd import bernstein as bz
 from mjccd.motion import Affine, Ball, Chain, Fixed, Free, Hinge, Rigid, Static, w_of_translation
+from mjccd.quadric import static_status_pose
 
 MOTIONS = ("rigid", "affine", "chain")
 
@@ -201,14 +202,35 @@ def _thin_axis(radii, pose, e):
 
 
 @numba.njit(cache=True, nogil=True)
+def _in_contact_at_start(radii, p0, i, j):
+    """Static status of pair (i, j) at t = 0 is touching or overlapping, decided exactly as
+    :meth:`mjccd.scene.Scene.step` decides it (same normalisation of the quaternions, same test)."""
+    pa = np.empty(3)
+    pb = np.empty(3)
+    qa = np.empty(4)
+    qb = np.empty(4)
+    na = np.sqrt(p0[i, 3] ** 2 + p0[i, 4] ** 2 + p0[i, 5] ** 2 + p0[i, 6] ** 2)
+    nb = np.sqrt(p0[j, 3] ** 2 + p0[j, 4] ** 2 + p0[j, 5] ** 2 + p0[j, 6] ** 2)
+    for m in range(3):
+        pa[m] = p0[i, m]
+        pb[m] = p0[j, m]
+    for m in range(4):
+        qa[m] = p0[i, 3 + m] / na
+        qb[m] = p0[j, 3 + m] / nb
+    return static_status_pose(radii[i], pa, qa, radii[j], pb, qb) <= 0
+
+
+@numba.njit(cache=True, nogil=True)
 def pairs_may_touch(affine, radii, rmax, p0, p1, pairs):
-    """False only when no pair can touch during the step (poses p0 -> p1, centres lerped); conservative.
+    """False only when no pair can make a new contact during the step (poses p0 -> p1, centres lerped).
 
     Per pair: the swept bounding spheres (radius = largest semi-axis), then
     planes normal to the centre line (at both ends) and to each ellipsoid's
-    thinnest axis, with support bounds that hold over the whole step.  A
-    pair cleared here has no contact at any t in [0, 1], so whatever the exact
-    check would find, it finds nothing for it.
+    thinnest axis, with support bounds that hold over the whole step: a pair
+    cleared by these has no contact at any t in [0, 1].  Last, a pair already
+    touching or overlapping at t = 0 is no new contact (the exact static
+    test, as the batched check runs it).  So whatever the exact check of new
+    contacts would find, it finds nothing for a cleared pair.
     """
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
@@ -244,6 +266,8 @@ def pairs_may_touch(affine, radii, rmax, p0, p1, pairs):
             continue
         ax, ay, az = _thin_axis(radii, p0, j)
         if _slab_clear(affine, radii, rmax, p0, p1, i, j, ax, ay, az, tol):
+            continue
+        if _in_contact_at_start(radii, p0, i, j):
             continue
         return True
     return False

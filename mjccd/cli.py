@@ -62,7 +62,7 @@ DELEGATED = {
     "import-bvh": ("mjccd.bvh", "convert a BVH motion-capture clip to an MJCF skeleton and qpos"),
     "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
 }
-BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene",
+BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monitor": "mjccd.bench.monitor",
                 "patches": "mjccd.patches.bench"}
 
 

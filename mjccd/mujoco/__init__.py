@@ -7,7 +7,7 @@ from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, capture, interpola
 from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, GuardReport, geom_ellipsoids
 
 __all__ = [
-    "CCDMonitor", "EllipsoidSet", "GuardReport", "GuardedStepper", "GuardedWrapper", "geom_ellipsoids", "Kinematics", "MOTIONS", "State", "StepContact", "StepReport",
-    "body_label", "capture", "default_pairs", "excluded_body_pairs", "interpolate_qpos",
-    "load_ellipsoids", "motions_between", "pairs_from_bodies",
+    "CCDMonitor", "EllipsoidSet", "GuardReport", "GuardedStepper", "GuardedWrapper", "Kinematics", "MOTIONS",
+    "State", "StepContact", "StepReport", "body_label", "capture", "default_pairs", "excluded_body_pairs",
+    "geom_ellipsoids", "interpolate_qpos", "load_ellipsoids", "motions_between", "pairs_from_bodies",
 ]

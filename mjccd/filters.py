@@ -20,7 +20,9 @@ they cannot clear goes to :mod:`mjccd.ccd`.
   cannot change sign while G stays positive, because at a zero of h,
   G = -n^T T n < 0.  G > 0 is decided on the Bernstein coefficients of G with
   subdivision; a rounding margin keeps the answer conservative, and a case
-  that cannot be certified is simply handed on.
+  that cannot be certified is simply handed on.  For rigid motions T is kept
+  factored, ``T = sum_m U_m U_m^T`` with U_m the semi-axis vectors (degree 2),
+  so ``n^T T n`` is a sum of three squares of cubics.
 * **Plane cache**: the normal that held is kept in the first ellipsoid's frame
   and tried first in the next frame (:mod:`mjccd.scene` drives it).
 
@@ -35,19 +37,22 @@ from mjccd import bernstein as bz
 from mjccd.quadric import Ellipsoid
 
 _jit = numba.njit(cache=True, nogil=True)
+# the small kernels of the per-pair hot path are inlined into their callers: a call with array
+# arguments costs reference counting per array, more than the arithmetic of these kernels
+_inline = numba.njit(cache=True, nogil=True, inline="always")
 
 EPS = 2.220446049250313e-16
 SPHERE_INFLATE = 1e-9        # relative growth of the summed radii: rounding never hides an entry
 PLANE_MARGIN = 1e-11         # relative rounding margin on the Bernstein coefficients of G
 PLANE_DEPTH = 8              # subdivision depth of the positivity test
-WORK_SHAPE = (PLANE_DEPTH + 4, 10)  # scratch rows of the witness kernels
-B8 = (1.0, 8.0, 28.0, 56.0, 70.0, 56.0, 28.0, 8.0, 1.0)
+WORK_SHAPE = (PLANE_DEPTH + 4, 10)  # scratch rows of the witness kernels (subdivision stack, n^T T n)
+INV_B8 = (1.0, 1 / 8, 1 / 28, 1 / 56, 1 / 70, 1 / 56, 1 / 28, 1 / 8, 1.0)  # scaled -> plain Bernstein, degree 8
 
 
 # ---------------------------------------------------------------- moving spheres
 
 
-@_jit
+@_inline
 def sphere_entry(ca0, ca1, ra, cb0, cb1, rb):
     """First t in [0, 1] at which two spheres with linearly moving centres touch, or -1.
 
@@ -81,192 +86,237 @@ def sphere_entry(ca0, ca1, ra, cb0, cb1, rb):
 # ---------------------------------------------------------------- inverse shape polynomials
 
 
-@_jit
-def _qprod(q0, q1, a, b, k):
-    """Scaled Bernstein coefficient k of q_a(t) q_b(t) for the lerp from q0 to q1."""
-    if k == 0:
-        return q0[a] * q0[b]
-    if k == 1:
-        return q0[a] * q1[b] + q1[a] * q0[b]
-    return q1[a] * q1[b]
+@_inline
+def support_rigid(radii, q0, q1, U, den, e):
+    """Fill U[e] (3, 3, 3) and den[e] (5,) so that ``Q(t)^-1 = sum_m U_m(t) U_m(t)^T / den(t)`` (rigid motion).
 
-
-@_jit
-def support_rigid(radii, q0, q1, T, den, scratch):
-    """Fill T (3, 3, 5) and den (5,) so that ``Q(t)^-1 = T(t) / den(t)`` for a rigid motion.
-
-    Scaled Bernstein form (coefficient k times C(4, k)).  With ``R = rot(q)/|q|^2``
-    and q lerped, ``Q^-1 = R diag(r^2) R^T = rot diag(r^2) rot^T / |q|^4``.
-    ``scratch`` is a (4, 3, 3) work array.
+    Ellipsoid e has semi-axes ``radii[e]`` and quaternions ``q0[e]``, ``q1[e]``
+    (sign-aligned) at t = 0 and 1.  Scaled Bernstein form (coefficient k times
+    C(degree, k)).  With q lerped, ``Q^-1 = rot(q) diag(r^2) rot(q)^T / |q|^4``:
+    ``U[e, m, :, k]`` is r_m times column m of rot(q) (degree 2) and
+    ``den = |q|^4`` (degree 4).  Keeping the factor instead of the product
+    makes ``n^T Q^-1 n`` a sum of three squares.
     """
-    for i in range(3):
-        for j in range(3):
-            for k in range(5):
-                T[i, j, k] = 0.0
-    for k in range(5):
-        den[k] = 0.0
-    # rot(q(t)) in scaled Bernstein form of degree 2: a product of two lerps
-    # [a0, a1] [b0, b1] is [a0 b0, a0 b1 + a1 b0, a1 b1]
-    rot = scratch[:3]
-    g = scratch[3, 0]
+    a0, a1, a2, a3 = q0[e, 0], q0[e, 1], q0[e, 2], q0[e, 3]
+    b0, b1, b2, b3 = q1[e, 0], q1[e, 1], q1[e, 2], q1[e, 3]
+    r0, r1, r2 = radii[e, 0], radii[e, 1], radii[e, 2]
     for k in range(3):
-        ww = _qprod(q0, q1, 0, 0, k)
-        xx = _qprod(q0, q1, 1, 1, k)
-        yy = _qprod(q0, q1, 2, 2, k)
-        zz = _qprod(q0, q1, 3, 3, k)
-        xy = _qprod(q0, q1, 1, 2, k)
-        xz = _qprod(q0, q1, 1, 3, k)
-        yz = _qprod(q0, q1, 2, 3, k)
-        wx = _qprod(q0, q1, 0, 1, k)
-        wy = _qprod(q0, q1, 0, 2, k)
-        wz = _qprod(q0, q1, 0, 3, k)
-        rot[0, 0, k] = ww + xx - yy - zz
-        rot[0, 1, k] = 2.0 * (xy - wz)
-        rot[0, 2, k] = 2.0 * (xz + wy)
-        rot[1, 0, k] = 2.0 * (xy + wz)
-        rot[1, 1, k] = ww - xx + yy - zz
-        rot[1, 2, k] = 2.0 * (yz - wx)
-        rot[2, 0, k] = 2.0 * (xz - wy)
-        rot[2, 1, k] = 2.0 * (yz + wx)
-        rot[2, 2, k] = ww - xx - yy + zz
-        g[k] = ww + xx + yy + zz
-    for i in range(3):
-        for j in range(i, 3):
-            for m in range(3):
-                r2 = radii[m] * radii[m]
-                for a in range(3):
-                    ra_ = rot[i, m, a] * r2
-                    for b in range(3):
-                        T[i, j, a + b] += ra_ * rot[j, m, b]
-            for k in range(5):
-                T[j, i, k] = T[i, j, k]
-    for a in range(3):
-        for b in range(3):
-            den[a + b] += g[a] * g[b]
+        # rot(q(t)) in scaled Bernstein form of degree 2: a product of two lerps
+        # [a0, a1] [b0, b1] is [a0 b0, a0 b1 + a1 b0, a1 b1]
+        if k == 0:
+            w, x, y, z, w2, x2, y2, z2 = a0, a1, a2, a3, a0, a1, a2, a3
+        elif k == 1:
+            w, x, y, z, w2, x2, y2, z2 = a0, a1, a2, a3, b0, b1, b2, b3
+        else:
+            w, x, y, z, w2, x2, y2, z2 = b0, b1, b2, b3, b0, b1, b2, b3
+        s = 2.0 if k == 1 else 1.0      # the middle coefficient is the symmetrised product
+        ww = s * w * w2
+        xx = s * x * x2
+        yy = s * y * y2
+        zz = s * z * z2
+        xy = x * y2 + y * x2 if k == 1 else x * y
+        xz = x * z2 + z * x2 if k == 1 else x * z
+        yz = y * z2 + z * y2 if k == 1 else y * z
+        wx = w * x2 + x * w2 if k == 1 else w * x
+        wy = w * y2 + y * w2 if k == 1 else w * y
+        wz = w * z2 + z * w2 if k == 1 else w * z
+        U[e, 0, 0, k] = r0 * (ww + xx - yy - zz)
+        U[e, 0, 1, k] = r0 * 2.0 * (xy + wz)
+        U[e, 0, 2, k] = r0 * 2.0 * (xz - wy)
+        U[e, 1, 0, k] = r1 * 2.0 * (xy - wz)
+        U[e, 1, 1, k] = r1 * (ww - xx + yy - zz)
+        U[e, 1, 2, k] = r1 * 2.0 * (yz + wx)
+        U[e, 2, 0, k] = r2 * 2.0 * (xz + wy)
+        U[e, 2, 1, k] = r2 * 2.0 * (yz - wx)
+        U[e, 2, 2, k] = r2 * (ww - xx - yy + zz)
+    g0 = a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3
+    g1 = 2.0 * (a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3)
+    g2 = b0 * b0 + b1 * b1 + b2 * b2 + b3 * b3
+    den[e, 0] = g0 * g0
+    den[e, 1] = 2.0 * g0 * g1
+    den[e, 2] = g1 * g1 + 2.0 * g0 * g2
+    den[e, 3] = 2.0 * g1 * g2
+    den[e, 4] = g2 * g2
 
 
 @_jit
-def support_affine(radii, q0, q1, T, den):
-    """Fill T (3, 3, 5) and den (5,) with adj Q(t) and det Q(t) for the affine interpolant.
+def support_affine(radii, q0, q1, T, den, e, scratch):
+    """Fill T[e] (3, 3, 5) and den[e] (5,) with adj Q(t) and det Q(t) for the affine interpolant.
 
     ``Q(t) = (1 - t) Q0 + t Q1`` is the lerped shape matrix, so
     ``Q^-1 = adj(Q) / det(Q)``; both are elevated to degree 4 (scaled form).
+    Arguments as in :func:`support_rigid`; ``scratch`` is an (8, 3, 3) work array.
     """
-    R0 = _rotation(q0)
-    R1 = _rotation(q1)
-    Q = np.zeros((3, 3, 2))
+    rotation_into(q0, scratch, e, 0)
+    rotation_into(q1, scratch, e, 1)
+    R0, R1, Q0, Q1 = scratch[0], scratch[1], scratch[2], scratch[3]
     for i in range(3):
         for j in range(3):
+            a0 = 0.0
+            a1 = 0.0
             for m in range(3):
-                dm = 1.0 / (radii[m] * radii[m])
-                Q[i, j, 0] += R0[i, m] * R0[j, m] * dm
-                Q[i, j, 1] += R1[i, m] * R1[j, m] * dm
-    adj = np.zeros((3, 3, 3))
+                dm = 1.0 / (radii[e, m] * radii[e, m])
+                a0 += R0[i, m] * R0[j, m] * dm
+                a1 += R1[i, m] * R1[j, m] * dm
+            Q0[i, j] = a0
+            Q1[i, j] = a1
+    adj = scratch[4:7]  # adj[c] = coefficient c of adj Q (power basis in (1 - t), t: degree 2)
     for i in range(3):
         for j in range(3):
             i1, i2 = (j + 1) % 3, (j + 2) % 3
             j1, j2 = (i + 1) % 3, (i + 2) % 3
             # adj[i, j] = cofactor of Q[j, i] (Q symmetric): cyclic indices give the sign
-            for a in range(2):
-                for b in range(2):
-                    adj[i, j, a + b] += Q[i1, j1, a] * Q[i2, j2, b] - Q[i1, j2, a] * Q[i2, j1, b]
-    det3 = np.zeros(4)
+            adj[0, i, j] = Q0[i1, j1] * Q0[i2, j2] - Q0[i1, j2] * Q0[i2, j1]
+            adj[1, i, j] = (Q0[i1, j1] * Q1[i2, j2] - Q0[i1, j2] * Q1[i2, j1]
+                            + Q1[i1, j1] * Q0[i2, j2] - Q1[i1, j2] * Q0[i2, j1])
+            adj[2, i, j] = Q1[i1, j1] * Q1[i2, j2] - Q1[i1, j2] * Q1[i2, j1]
+    d0 = d1 = d2 = d3 = 0.0
     for j in range(3):
-        for a in range(2):
-            for b in range(3):
-                det3[a + b] += Q[0, j, a] * adj[j, 0, b]
+        d0 += Q0[0, j] * adj[0, j, 0]
+        d1 += Q0[0, j] * adj[1, j, 0] + Q1[0, j] * adj[0, j, 0]
+        d2 += Q0[0, j] * adj[2, j, 0] + Q1[0, j] * adj[1, j, 0]
+        d3 += Q1[0, j] * adj[2, j, 0]
     for i in range(3):
         for j in range(3):
-            c0, c1, c2 = adj[i, j, 0], adj[i, j, 1], adj[i, j, 2]
-            T[i, j, 0] = c0
-            T[i, j, 1] = 2.0 * c0 + c1
-            T[i, j, 2] = c0 + 2.0 * c1 + c2
-            T[i, j, 3] = c1 + 2.0 * c2
-            T[i, j, 4] = c2
-    den[0] = det3[0]
-    den[1] = det3[0] + det3[1]
-    den[2] = det3[1] + det3[2]
-    den[3] = det3[2] + det3[3]
-    den[4] = det3[3]
+            c0, c1, c2 = adj[0, i, j], adj[1, i, j], adj[2, i, j]
+            T[e, i, j, 0] = c0
+            T[e, i, j, 1] = 2.0 * c0 + c1
+            T[e, i, j, 2] = c0 + 2.0 * c1 + c2
+            T[e, i, j, 3] = c1 + 2.0 * c2
+            T[e, i, j, 4] = c2
+    den[e, 0] = d0
+    den[e, 1] = d0 + d1
+    den[e, 2] = d1 + d2
+    den[e, 3] = d2 + d3
+    den[e, 4] = d3
 
 
-@_jit
-def _rotation(q):
-    """Rotation matrix of a unit quaternion [w, x, y, z]."""
-    R = np.empty((3, 3))
-    rotation_into(q, R)
-    return R
-
-
-@_jit
-def rotation_into(q, R):
-    """Write the rotation matrix of a unit quaternion [w, x, y, z] into R (3, 3)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    R[0, 0] = w * w + x * x - y * y - z * z
-    R[0, 1] = 2.0 * (x * y - w * z)
-    R[0, 2] = 2.0 * (x * z + w * y)
-    R[1, 0] = 2.0 * (x * y + w * z)
-    R[1, 1] = w * w - x * x + y * y - z * z
-    R[1, 2] = 2.0 * (y * z - w * x)
-    R[2, 0] = 2.0 * (x * z - w * y)
-    R[2, 1] = 2.0 * (y * z + w * x)
-    R[2, 2] = w * w - x * x - y * y + z * z
+@_inline
+def rotation_into(q, R, e, r):
+    """Write the rotation matrix of the unit quaternion q[e] = [w, x, y, z] into R[r] (3, 3)."""
+    w, x, y, z = q[e, 0], q[e, 1], q[e, 2], q[e, 3]
+    R[r, 0, 0] = w * w + x * x - y * y - z * z
+    R[r, 0, 1] = 2.0 * (x * y - w * z)
+    R[r, 0, 2] = 2.0 * (x * z + w * y)
+    R[r, 1, 0] = 2.0 * (x * y + w * z)
+    R[r, 1, 1] = w * w - x * x + y * y - z * z
+    R[r, 1, 2] = 2.0 * (y * z - w * x)
+    R[r, 2, 0] = 2.0 * (x * z - w * y)
+    R[r, 2, 1] = 2.0 * (y * z + w * x)
+    R[r, 2, 2] = w * w - x * x - y * y + z * z
 
 
 # ---------------------------------------------------------------- separating-plane witness
+#
+# The kernels work on the arrays of all ellipsoids of a frame and take indices:
+# S (N, 3, 3, 3) holds the rigid factors U of :func:`support_rigid`, or
+# S (N, 3, 3, 5) the matrices T of :func:`support_affine` (the last axis tells
+# them apart), den (N, 5) the denominators, R0/R1 (N, 3, 3) the rotations at
+# t = 0 and 1.  Normals and centres are 3-tuples (or length-3 arrays).  Indexing
+# whole arrays instead of taking per-ellipsoid views keeps the hot path free of
+# reference counting.
 
 
-@_jit
-def support_at(T, den, n, k):
-    """Support radius sqrt(n^T Q^-1 n) at the end k = 0 (t = 0) or k = 4 (t = 1)."""
+@_inline
+def support_at(S, den, e, n, k):
+    """Support radius sqrt(n^T Q^-1 n) of ellipsoid e at the end k = 0 (t = 0) or k = 4 (t = 1)."""
     acc = 0.0
+    if S.shape[3] == 3:
+        c = k // 2
+        for m in range(3):
+            s = n[0] * S[e, m, 0, c] + n[1] * S[e, m, 1, c] + n[2] * S[e, m, 2, c]
+            acc += s * s
+    else:
+        for i in range(3):
+            for j in range(3):
+                acc += n[i] * S[e, i, j, k] * n[j]
+    return np.sqrt(max(acc, 0.0) / den[e, k])
+
+
+@_inline
+def _normal_form(S, e, n0, n1, work, row):
+    """Write n(t)^T Q^-1(t) den(t) n(t) (degree 6, scaled) into work[row, :7]; return its rounding scale.
+
+    The scale bounds the sum of absolute values of the products behind any
+    coefficient, so a margin relative to it covers the rounding.
+    """
+    for a in range(7):
+        work[row, a] = 0.0
+    if S.shape[3] == 3:
+        # sum of squares of s_m(t) = n(t) . U_m(t) (degree 3): |coefficient| <= 16 |n|^2 |U|^2 (Cauchy-Schwarz)
+        su = 0.0
+        for m in range(3):
+            s0 = n0[0] * S[e, m, 0, 0] + n0[1] * S[e, m, 1, 0] + n0[2] * S[e, m, 2, 0]
+            s1 = (n0[0] * S[e, m, 0, 1] + n0[1] * S[e, m, 1, 1] + n0[2] * S[e, m, 2, 1]
+                  + n1[0] * S[e, m, 0, 0] + n1[1] * S[e, m, 1, 0] + n1[2] * S[e, m, 2, 0])
+            s2 = (n0[0] * S[e, m, 0, 2] + n0[1] * S[e, m, 1, 2] + n0[2] * S[e, m, 2, 2]
+                  + n1[0] * S[e, m, 0, 1] + n1[1] * S[e, m, 1, 1] + n1[2] * S[e, m, 2, 1])
+            s3 = n1[0] * S[e, m, 0, 2] + n1[1] * S[e, m, 1, 2] + n1[2] * S[e, m, 2, 2]
+            work[row, 0] += s0 * s0
+            work[row, 1] += 2.0 * s0 * s1
+            work[row, 2] += s1 * s1 + 2.0 * s0 * s2
+            work[row, 3] += 2.0 * (s0 * s3 + s1 * s2)
+            work[row, 4] += s2 * s2 + 2.0 * s1 * s3
+            work[row, 5] += 2.0 * s2 * s3
+            work[row, 6] += s3 * s3
+            for i in range(3):
+                for c in range(3):
+                    su += S[e, m, i, c] * S[e, m, i, c]
+        nn = 0.0
+        for i in range(3):
+            nn += n0[i] * n0[i] + n1[i] * n1[i]
+        return 16.0 * nn * su
     for i in range(3):
         for j in range(3):
-            acc += n[i] * T[i, j, k] * n[j]
-    return np.sqrt(max(acc, 0.0) / den[k])
+            for a in range(5):
+                tij = S[e, i, j, a]
+                work[row, a] += n0[i] * tij * n0[j]
+                work[row, a + 1] += (n0[i] * n1[j] + n1[i] * n0[j]) * tij
+                work[row, a + 2] += n1[i] * tij * n1[j]
+    nmax = 0.0
+    for a in range(7):
+        nmax = max(nmax, abs(work[row, a]))
+    return nmax
 
 
-@_jit
-def _positive8(c, margin, work):
-    """True when the degree-8 Bernstein polynomial c is > margin on [0, 1] (certified).
+@_inline
+def _positive8(work, margin):
+    """True when the degree-8 Bernstein polynomial in work[0, :9] is > margin on [0, 1] (certified).
 
-    Depth-first subdivision on the scratch rows of ``work``; column 9 holds the
-    depth of each stacked piece.  Fails as soon as an end value (an exact value
-    of the polynomial) is not above the margin, or at depth PLANE_DEPTH.
+    Depth-first subdivision on the rows of ``work``; column 9 holds the depth
+    of each stacked piece.  Fails as soon as an end value (an exact value of
+    the polynomial) is not above the margin, or at depth PLANE_DEPTH.
     """
-    for k in range(9):
-        work[0, k] = c[k]
     work[0, 9] = 0.0
     top = 1
     while top > 0:
         top -= 1
-        cur = work[top]
-        if cur[0] <= margin or cur[8] <= margin:
+        if work[top, 0] <= margin or work[top, 8] <= margin:
             return False
-        lo = cur[1]
+        lo = work[top, 1]
         for k in range(2, 8):
-            lo = min(lo, cur[k])
+            lo = min(lo, work[top, k])
         if lo > margin:
             continue
-        if cur[9] >= PLANE_DEPTH:
+        if work[top, 9] >= PLANE_DEPTH:
             return False
-        # de Casteljau at 1/2: left half back into slot top, right half into slot top + 1
-        nxt = work[top + 1]
+        # de Casteljau at 1/2: left half back into row top, right half into row top + 1
+        nxt = top + 1
         for k in range(9):
-            nxt[k] = cur[k]
+            work[nxt, k] = work[top, k]
         for r in range(1, 9):
             for k in range(9 - r):
-                nxt[k] = 0.5 * (nxt[k] + nxt[k + 1])
-            cur[r] = nxt[0]
-        cur[9] += 1.0
-        nxt[9] = cur[9]
+                work[nxt, k] = 0.5 * (work[nxt, k] + work[nxt, k + 1])
+            work[top, r] = work[nxt, 0]
+        work[top, 9] += 1.0
+        work[nxt, 9] = work[top, 9]
         top += 2
     return True
 
 
-@_jit
-def _side_holds(n0, d0, n1, d1, c0, c1, T, den, sign, work):
-    """True when the ellipsoid stays strictly on the side ``sign (n.x + d) > 0`` over [0, 1]."""
+@_inline
+def _side_holds(n0, d0, n1, d1, c0, c1, S, den, e, sign, work):
+    """True when ellipsoid e stays strictly on the side ``sign (n.x + d) > 0`` over [0, 1]."""
     # h(t) = sign (n(t) . c(t) + d(t)), scaled Bernstein degree 2
     h0 = sign * (n0[0] * c0[0] + n0[1] * c0[1] + n0[2] * c0[2] + d0)
     h1 = sign * (n0[0] * c1[0] + n0[1] * c1[1] + n0[2] * c1[2]
@@ -285,106 +335,104 @@ def _side_holds(n0, d0, n1, d1, c0, c1, T, den, sign, work):
     hh2 = h1 * h1 + 2.0 * h0 * h2
     hh3 = 2.0 * h1 * h2
     hh4 = h2 * h2
-    G = work[PLANE_DEPTH + 2]
-    nTn = work[PLANE_DEPTH + 3]
+    nt = PLANE_DEPTH + 3  # row of n^T T n; G goes to row 0, where the positivity test starts
+    nscale = _normal_form(S, e, n0, n1, work, nt)
     for a in range(9):
-        G[a] = 0.0
-        nTn[a] = 0.0
-    for a in range(5):
-        da = den[a]
-        G[a] += hh0 * da
-        G[a + 1] += hh1 * da
-        G[a + 2] += hh2 * da
-        G[a + 3] += hh3 * da
-        G[a + 4] += hh4 * da
-    # n^T T n (degree 6, scaled), then elevated to 8 by the factor (1 - t + t)^2
-    for i in range(3):
-        for j in range(3):
-            for a in range(5):
-                tij = T[i, j, a]
-                nTn[a] += n0[i] * tij * n0[j]
-                nTn[a + 1] += (n0[i] * n1[j] + n1[i] * n0[j]) * tij
-                nTn[a + 2] += n1[i] * tij * n1[j]
-    nmax = 0.0
+        work[0, a] = 0.0
     dmax = 0.0
-    for a in range(7):
-        G[a] -= nTn[a]
-        G[a + 1] -= 2.0 * nTn[a]
-        G[a + 2] -= nTn[a]
-    for a in range(9):
-        G[a] /= B8[a]
-    for a in range(7):
-        nmax = max(nmax, abs(nTn[a]))
     for a in range(5):
-        dmax = max(dmax, abs(den[a]))
-    margin = PLANE_MARGIN * (habs * habs * dmax + nmax)
-    return _positive8(G, margin, work)
+        da = den[e, a]
+        dmax = max(dmax, abs(da))
+        work[0, a] += hh0 * da
+        work[0, a + 1] += hh1 * da
+        work[0, a + 2] += hh2 * da
+        work[0, a + 3] += hh3 * da
+        work[0, a + 4] += hh4 * da
+    # minus n^T T n elevated from degree 6 to 8 by the factor (1 - t + t)^2, then to plain Bernstein
+    for a in range(7):
+        v = work[nt, a]
+        work[0, a] -= v
+        work[0, a + 1] -= 2.0 * v
+        work[0, a + 2] -= v
+    for a in range(9):
+        work[0, a] *= INV_B8[a]
+    margin = PLANE_MARGIN * (habs * habs * dmax + nscale)
+    return _positive8(work, margin)
 
 
-@_jit
-def plane_holds(n0, d0, n1, d1, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
-    """True when the plane lerped from (n0, d0) to (n1, d1) keeps A below and B above over [0, 1].
+@_inline
+def plane_holds(n0, d0, n1, d1, ca0, ca1, cb0, cb1, S, den, ia, ib, work):
+    """True when the plane lerped from (n0, d0) to (n1, d1) keeps A = ia below and B = ib above over [0, 1].
 
-    ``ca*``/``cb*``: centres at t = 0 and 1; ``T``/``den``: inverse shape
-    polynomials from :func:`support_rigid` or :func:`support_affine`.
-    Requires ``n0 . n1 > 0`` so that n(t) never vanishes.
+    ``ca*``/``cb*``: centres at t = 0 and 1.  Requires ``n0 . n1 > 0`` so
+    that n(t) never vanishes.
     """
     if n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2] <= 0.0:
         return False
-    if not _side_holds(n0, d0, n1, d1, cb0, cb1, Tb, denb, 1.0, work):
+    if not _side_holds(n0, d0, n1, d1, cb0, cb1, S, den, ib, 1.0, work):
         return False
-    return _side_holds(n0, d0, n1, d1, ca0, ca1, Ta, dena, -1.0, work)
+    return _side_holds(n0, d0, n1, d1, ca0, ca1, S, den, ia, -1.0, work)
 
 
-@_jit
-def gap_offset(n, ca, Ta, dena, cb, Tb, denb, k):
+@_inline
+def gap_offset(n, ca, cb, S, den, ia, ib, k):
     """Offset d putting the plane with normal n mid-way between A and B at end k (0 or 4).
 
     Returns (ok, d); ok is False when the projections of A and B on n overlap.
     """
-    lo = n[0] * ca[0] + n[1] * ca[1] + n[2] * ca[2] + support_at(Ta, dena, n, k)
-    hi = n[0] * cb[0] + n[1] * cb[1] + n[2] * cb[2] - support_at(Tb, denb, n, k)
+    lo = n[0] * ca[0] + n[1] * ca[1] + n[2] * ca[2] + support_at(S, den, ia, n, k)
+    hi = n[0] * cb[0] + n[1] * cb[1] + n[2] * cb[2] - support_at(S, den, ib, n, k)
     if not lo < hi:
         return False, 0.0
     return True, -0.5 * (lo + hi)
 
 
-@_jit
-def witness(n0, n1, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
+@_inline
+def witness(n0, n1, ca0, ca1, cb0, cb1, S, den, ia, ib, work):
     """Try the plane with normal lerped from n0 to n1, centred in the gap at both ends."""
-    ok0, d0 = gap_offset(n0, ca0, Ta, dena, cb0, Tb, denb, 0)
+    ok0, d0 = gap_offset(n0, ca0, cb0, S, den, ia, ib, 0)
     if not ok0:
         return False
-    ok1, d1 = gap_offset(n1, ca1, Ta, dena, cb1, Tb, denb, 4)
+    ok1, d1 = gap_offset(n1, ca1, cb1, S, den, ia, ib, 4)
     if not ok1:
         return False
-    return plane_holds(n0, d0, n1, d1, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work)
+    return plane_holds(n0, d0, n1, d1, ca0, ca1, cb0, cb1, S, den, ia, ib, work)
 
 
-@_jit
-def witness_variants(n0, ca0, ca1, Ra0, Ra1, Ta, dena, cb0, cb1, Rb0, Rb1, Tb, denb, n1_out, work, first):
+@_inline
+def _turn(R0, R1, e, n):
+    """R1[e] R0[e]^T n: the normal n carried along by body e turning from R0[e] to R1[e]."""
+    l0 = R0[e, 0, 0] * n[0] + R0[e, 1, 0] * n[1] + R0[e, 2, 0] * n[2]
+    l1 = R0[e, 0, 1] * n[0] + R0[e, 1, 1] * n[1] + R0[e, 2, 1] * n[2]
+    l2 = R0[e, 0, 2] * n[0] + R0[e, 1, 2] * n[1] + R0[e, 2, 2] * n[2]
+    return (R1[e, 0, 0] * l0 + R1[e, 0, 1] * l1 + R1[e, 0, 2] * l2,
+            R1[e, 1, 0] * l0 + R1[e, 1, 1] * l1 + R1[e, 1, 2] * l2,
+            R1[e, 2, 0] * l0 + R1[e, 2, 1] * l1 + R1[e, 2, 2] * l2)
+
+
+@_inline
+def witness_variants(n0, ca0, ca1, cb0, cb1, R0, R1, S, den, ia, ib, work, first):
     """Try a world normal n0 held fixed (variant 1), turning with A (2) and turning with B (3).
 
-    ``R*0``/``R*1`` are the rotations of the two bodies at t = 0 and 1; variant
-    ``first`` is tried first (the one that held last frame).  Returns the
-    variant that held (its normal at t = 1 in ``n1_out``), or 0.
+    Variant ``first`` is tried first (the one that held last frame).  Returns
+    (the variant that held or 0, its normal at t = 1 as a 3-tuple).
     """
+    n1 = (n0[0], n0[1], n0[2])
+    ok0, d0 = gap_offset(n0, ca0, cb0, S, den, ia, ib, 0)  # the same for every variant
+    if not ok0:
+        return 0, n1
     for step in range(3):
         v = (first - 1 + step) % 3 + 1
         if v == 1:
-            n1_out[:] = n0
+            n1 = (n0[0], n0[1], n0[2])
+        elif v == 2:
+            n1 = _turn(R0, R1, ia, n0)
         else:
-            R0 = Ra0 if v == 2 else Rb0
-            R1 = Ra1 if v == 2 else Rb1
-            for i in range(3):  # n1 = R1 R0^T n0
-                acc = 0.0
-                for j in range(3):
-                    loc = R0[0, j] * n0[0] + R0[1, j] * n0[1] + R0[2, j] * n0[2]
-                    acc += R1[i, j] * loc
-                n1_out[i] = acc
-        if witness(n0, n1_out, ca0, ca1, Ta, dena, cb0, cb1, Tb, denb, work):
-            return v
-    return 0
+            n1 = _turn(R0, R1, ib, n0)
+        ok1, d1 = gap_offset(n1, ca1, cb1, S, den, ia, ib, 4)
+        if ok1 and plane_holds(n0, d0, n1, d1, ca0, ca1, cb0, cb1, S, den, ia, ib, work):
+            return v, n1
+    return 0, n1
 
 
 # ---------------------------------------------------------------- Python layer

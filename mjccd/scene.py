@@ -30,6 +30,7 @@ from mjccd.quadric import (quadric_matrix, separating_plane_matrices, static_sta
                            touching_point)
 
 _jit = numba.njit(cache=True, nogil=True)
+_inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
 
 # outcome codes of a pair in one frame
 SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED = range(7)
@@ -47,6 +48,24 @@ def _ticks(typingctx):
         fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
         return builder.call(fn, [])
     return types.int64(), codegen
+
+
+@intrinsic
+def _borrow(typingctx, arr):
+    """A view of ``arr`` that holds no reference (no meminfo), for arrays the kernel's caller keeps alive.
+
+    Numba counts references to every array passed to an inlined helper or
+    sliced from another array, with atomic instructions; on the per-pair hot
+    path that costs more than the arithmetic.  Views of a borrowed array are
+    borrowed too.  Never return one or keep it past the call.
+    """
+    def codegen(context, builder, signature, args):
+        src = context.make_array(signature.args[0])(context, builder, args[0])
+        out = context.make_array(signature.return_type)(context, builder)
+        context.populate_array(out, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize,
+                               meminfo=None)
+        return out._getvalue()
+    return arr(arr), codegen
 
 
 @numba.njit(cache=True, nogil=True)
@@ -86,79 +105,110 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
     return status0, intervals, point, normal
 
 
-@_jit
-def _rotate(R, v, out):
-    for i in range(3):
-        out[i] = R[i, 0] * v[0] + R[i, 1] * v[1] + R[i, 2] * v[2]
+@_inline
+def _to_world(R, e, v):
+    """R[e] v for a 3-tuple v (a normal kept in body e's frame, put into the world)."""
+    return (R[e, 0, 0] * v[0] + R[e, 0, 1] * v[1] + R[e, 0, 2] * v[2],
+            R[e, 1, 0] * v[0] + R[e, 1, 1] * v[1] + R[e, 1, 2] * v[2],
+            R[e, 2, 0] * v[0] + R[e, 2, 1] * v[1] + R[e, 2, 2] * v[2])
 
 
-@_jit
-def _rotate_back(R, v, out):
-    for i in range(3):
-        out[i] = R[0, i] * v[0] + R[1, i] * v[1] + R[2, i] * v[2]
-
-
-@_jit
-def _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache, cache_n, cache_kind, k,
-                 work, scratch):
-    """Filters of pair k = (i, j): returns (outcome code, sphere-entry time).
-
-    ``cache_kind[k]``: 0 no cached plane, else the witness variant to try first.
-    """
-    te = fl.sphere_entry(p0[i], p1[i], rmax[i], p0[j], p1[j], rmax[j])
-    if te < 0.0:
-        return SPHERE, te
-    o = p0[i]
-    ca0, ca1, cb0, cb1 = scratch[0], scratch[1], scratch[2], scratch[3]
-    n0, n1, tmp = scratch[4], scratch[5], scratch[6]
+@_inline
+def _keep(R, e, n, cache_n, k):
+    """cache_n[k] = R[e]^T n: the world normal n kept in body e's frame for the next frame."""
     for m in range(3):
-        ca0[m] = 0.0
-        ca1[m] = p1[i, m] - o[m]
-        cb0[m] = p0[j, m] - o[m]
-        cb1[m] = p1[j, m] - o[m]
+        cache_n[k, m] = R[e, 0, m] * n[0] + R[e, 1, m] * n[1] + R[e, 2, m] * n[2]
+
+
+@_inline
+def _prepare(affine, e, radii, q0, q1_raw, q1, S, den, R0, R1, aff_scratch):
+    """Per-ellipsoid data of a frame: q1 sign-aligned with q0, inverse shape polynomials, end rotations.
+
+    Done only for ellipsoids with a pair past the sphere filter.
+    """
+    s = 1.0
+    if q0[e, 0] * q1_raw[e, 0] + q0[e, 1] * q1_raw[e, 1] + q0[e, 2] * q1_raw[e, 2] + q0[e, 3] * q1_raw[e, 3] < 0.0:
+        s = -1.0
+    for m in range(4):
+        q1[e, m] = s * q1_raw[e, m]
+    if affine:
+        fl.support_affine(radii, q0, q1, S, den, e, aff_scratch)
+    else:
+        fl.support_rigid(radii, q0, q1, S, den, e)
+    fl.rotation_into(q0, R0, e, e)
+    fl.rotation_into(q1, R1, e, e)
+
+
+@_inline
+def _filter_pair(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, use_cache, cache_n, cache_kind, k, work, scratch):
+    """Plane filters of pair k = (i, j), whose moving spheres meet: returns the outcome code.
+
+    ``cache_kind[k]``: 0 no cached plane, else the witness variant to try
+    first.  Centres are taken relative to A's at t = 0.
+    """
+    o0, o1, o2 = p0[i, 0], p0[i, 1], p0[i, 2]
+    ca0 = (0.0, 0.0, 0.0)
+    ca1 = (p1[i, 0] - o0, p1[i, 1] - o1, p1[i, 2] - o2)
+    cb0 = (p0[j, 0] - o0, p0[j, 1] - o1, p0[j, 2] - o2)
+    cb1 = (p1[j, 0] - o0, p1[j, 1] - o1, p1[j, 2] - o2)
     if use_cache and cache_kind[k] > 0:
-        _rotate(R0[i], cache_n[k], n0)
-        v = fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
-                                n1, work, cache_kind[k])
+        n0 = _to_world(R0, i, (cache_n[k, 0], cache_n[k, 1], cache_n[k, 2]))
+        v, n1 = fl.witness_variants(n0, ca0, ca1, cb0, cb1, R0, R1, S, den, i, j, work, cache_kind[k])
         if v > 0:
-            _rotate_back(R1[i], n1, cache_n[k])
+            _keep(R1, i, n1, cache_n, k)
             cache_kind[k] = v
-            return CACHED_PLANE, te
+            return CACHED_PLANE
     cache_kind[k] = 0
+    for m in range(3):
+        scratch[0, m] = ca0[m]
+        scratch[1, m] = ca1[m]
+        scratch[2, m] = cb0[m]
+        scratch[3, m] = cb1[m]
+    return _new_plane(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, cache_n, cache_kind, k, work, scratch)
+
+
+@_jit
+def _new_plane(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, cache_n, cache_kind, k, work, scratch):
+    """Static tests and a new separating plane for pair k: the outcome code.
+
+    ``scratch[:4]`` holds the centres relative to A's at t = 0 (from :func:`_filter_pair`).
+    """
+    ca0, ca1, cb0, cb1 = scratch[0], scratch[1], scratch[2], scratch[3]
     if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) <= 0:
-        return OVERLAP_T0, 0.0
+        return OVERLAP_T0
     if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) <= 0:
-        return EXACT_FREE, te  # certainly not separate at t = 1: straight to the exact solver
+        return EXACT_FREE  # certainly not separate at t = 1: straight to the exact solver
     ok, plane, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca0, q0[i]),
                                                 quadric_matrix(radii[j], cb0, q0[j]))
+    n0 = (plane[0], plane[1], plane[2])
     if ok:
-        for m in range(3):
-            n0[m] = plane[m]
-        v = fl.witness_variants(n0, ca0, ca1, R0[i], R1[i], T[i], den[i], cb0, cb1, R0[j], R1[j], T[j], den[j],
-                                n1, work, 1)
+        v, n1 = fl.witness_variants(n0, ca0, ca1, cb0, cb1, R0, R1, S, den, i, j, work, 1)
         if v > 0:
-            _rotate_back(R1[i], n1, cache_n[k])
+            _keep(R1, i, n1, cache_n, k)
             cache_kind[k] = v
-            return NEW_PLANE, te
+            return NEW_PLANE
     ok1, plane1, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca1, q1[i]),
                                                   quadric_matrix(radii[j], cb1, q1[j]))
     if ok1:
-        for m in range(3):
-            tmp[m] = plane1[m]
-        _rotate_back(R1[i], tmp, cache_n[k])
+        n1 = (plane1[0], plane1[1], plane1[2])
+        _keep(R1, i, n1, cache_n, k)
         cache_kind[k] = 1
-        if ok and n0[0] * tmp[0] + n0[1] * tmp[1] + n0[2] * tmp[2] > 0.0:
-            if fl.witness(n0, tmp, ca0, ca1, T[i], den[i], cb0, cb1, T[j], den[j], work):
-                return NEW_PLANE, te
-    return EXACT_FREE, te
+        if ok and n0[0] * n1[0] + n0[1] * n1[1] + n0[2] * n1[2] > 0.0:
+            if fl.witness(n0, n1, ca0, ca1, cb0, cb1, S, den, i, j, work):
+                return NEW_PLANE
+    return EXACT_FREE
 
 
 @_jit
-def workspace(n, npairs):
-    """Scratch arrays of :func:`step_kernel`, allocated once per run."""
-    return (np.empty((n, 4)), np.empty(n), np.empty((n, 3, 3, 5)), np.empty((n, 5)), np.empty((n, 3, 3)),
-            np.empty((n, 3, 3)), np.empty(fl.WORK_SHAPE), np.empty((7, 3)), np.empty(npairs, dtype=np.int64),
-            np.zeros(N_COUNTERS, dtype=np.int64), np.empty((4, 3, 3)))
+def workspace(radii, npairs, affine):
+    """Scratch arrays of :func:`step_kernel`, allocated once per run (``rmax``: the largest semi-axes)."""
+    n = radii.shape[0]
+    rmax = np.empty(n)
+    for i in range(n):
+        rmax[i] = max(radii[i, 0], radii[i, 1], radii[i, 2])
+    return (np.empty((n, 4)), rmax, np.empty((n, 3, 3, 5 if affine else 3)), np.empty((n, 5)),
+            np.empty((n, 3, 3)), np.empty((n, 3, 3)), np.empty(fl.WORK_SHAPE), np.empty((4, 3)),
+            np.empty(npairs, dtype=np.int64), np.empty(n, dtype=np.bool_), np.empty((8, 3, 3)))
 
 
 @_jit
@@ -174,36 +224,35 @@ def _sort_by_entry(cand, m, entry):
         cand[b + 1] = k
 
 
-@_jit
+@_inline
 def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only,
-                timing, outcome, entry, times, points, normals, ticks, ws):
-    """One frame over all pairs.  Fills the per-pair arrays; returns (best pair, counters, intervals, owners).
+                timing, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws):
+    """One frame over all pairs.  Fills the per-pair arrays and ``counters``; returns (best pair, rows, iv, owner).
 
     ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
     contact of pair k (-1 when none found), ``entry[k]`` its sphere-entry
     time.  With ``all_pairs`` every pair not cleared by a filter is solved
-    over [0, 1] and its intervals are returned (``owners`` gives the pair of
-    each row); otherwise only the frame's first contact is sought.  ``ws`` is
-    the scratch from :func:`workspace`.  With ``new_only`` pairs already
-    touching or overlapping at the start are counted but neither solved nor
-    reported, so the first contact is the earliest new one.
+    over [0, 1] and its intervals are written to ``iv`` (``owner`` gives the
+    pair of each row; both are replaced by larger arrays when full, so use the
+    returned ones and their first ``rows`` rows); otherwise only the frame's
+    first contact is sought.  ``ws`` is the scratch from :func:`workspace`.
+    With ``new_only`` pairs already touching or overlapping at the start are
+    counted but neither solved nor reported, so the first contact is the
+    earliest new one.  Nothing is allocated unless a pair reaches the exact
+    solver or ``iv`` fills up.
     """
+    radii, p0, q0, p1, q1_raw, pairs = _borrow(radii), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1_raw), _borrow(pairs)
+    cache_n, cache_kind, outcome, entry = _borrow(cache_n), _borrow(cache_kind), _borrow(outcome), _borrow(entry)
+    times, points, normals, ticks, counters = _borrow(times), _borrow(points), _borrow(normals), _borrow(ticks), _borrow(counters)
+    q1, rmax, S, den = _borrow(ws[0]), _borrow(ws[1]), _borrow(ws[2]), _borrow(ws[3])
+    R0, R1, work, scratch = _borrow(ws[4]), _borrow(ws[5]), _borrow(ws[6]), _borrow(ws[7])
+    cand, ready, aff_scratch = _borrow(ws[8]), _borrow(ws[9]), _borrow(ws[10])
     n = radii.shape[0]
     npairs = pairs.shape[0]
-    q1, rmax, T, den, R0, R1, work, scratch, cand, counters, rot_scratch = ws
-    q1[:] = q1_raw
     for i in range(n):
-        if q0[i, 0] * q1[i, 0] + q0[i, 1] * q1[i, 1] + q0[i, 2] * q1[i, 2] + q0[i, 3] * q1[i, 3] < 0.0:
-            for m in range(4):
-                q1[i, m] = -q1[i, m]
-        rmax[i] = radii[i].max()
-        if affine:
-            fl.support_affine(radii[i], q0[i], q1[i], T[i], den[i])
-        else:
-            fl.support_rigid(radii[i], q0[i], q1[i], T[i], den[i], rot_scratch)
-        fl.rotation_into(q0[i], R0[i])
-        fl.rotation_into(q1[i], R1[i])
-    counters[:] = 0
+        ready[i] = False
+    for c in range(N_COUNTERS):
+        counters[c] = 0
     counters[0] = npairs
     ncand = 0
     best = 2.0
@@ -215,8 +264,20 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
         i = pairs[k, 0]
         j = pairs[k, 1]
         times[k] = -1.0
-        code, te = _filter_pair(affine, i, j, radii, rmax, p0, q0, p1, q1, T, den, R0, R1, use_cache,
-                                cache_n, cache_kind, k, work, scratch)
+        te = fl.sphere_entry((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), rmax[i],
+                             (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]), rmax[j])
+        code = SPHERE
+        if te >= 0.0:
+            if not ready[i]:
+                _prepare(affine, i, radii, q0, q1_raw, q1, S, den, R0, R1, aff_scratch)
+                ready[i] = True
+            if not ready[j]:
+                _prepare(affine, j, radii, q0, q1_raw, q1, S, den, R0, R1, aff_scratch)
+                ready[j] = True
+            code = _filter_pair(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, use_cache, cache_n, cache_kind, k,
+                                work, scratch)
+            if code == OVERLAP_T0:
+                te = 0.0
         outcome[k] = code
         entry[k] = te
         if code == OVERLAP_T0 and new_only:
@@ -235,8 +296,6 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
             counters[1 + code] += 1
         if timing:
             ticks[k] = _ticks() - t_start
-    iv = np.empty((16 if all_pairs else 0, 2))
-    owner = np.empty(16 if all_pairs else 0, dtype=np.int64)
     niv = 0
     if ncand > 1:
         _sort_by_entry(cand, ncand, entry)
@@ -272,10 +331,10 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
         if all_pairs:
             for r in range(intervals.shape[0]):
                 if niv == iv.shape[0]:
-                    bigger = np.empty((2 * niv, 2))
+                    bigger = np.empty((2 * niv + 16, 2))
                     bigger[:niv] = iv
                     iv = bigger
-                    bigger_o = np.empty(2 * niv, dtype=np.int64)
+                    bigger_o = np.empty(2 * niv + 16, dtype=np.int64)
                     bigger_o[:niv] = owner
                     owner = bigger_o
                 iv[niv] = intervals[r]
@@ -283,7 +342,7 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
                 niv += 1
         if timing:
             ticks[k] += _ticks() - t_start
-    return best_k, counters.copy(), iv[:niv], owner[:niv]
+    return best_k, niv, iv, owner
 
 
 @_jit
@@ -295,15 +354,19 @@ def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache
     times = np.empty(npairs)
     points = np.zeros((npairs, 3))
     normals = np.zeros((npairs, 3))
+    iv = np.empty((0, 2))
+    owner = np.empty(0, dtype=np.int64)
     t_start = 0
-    ws = workspace(radii.shape[0], npairs)
+    ws = workspace(radii, npairs, affine)
+    # the per-frame views below are then free of reference counting (all of these live through the call)
+    positions, quats, outcomes, ticks, counters = (_borrow(positions), _borrow(quats), _borrow(outcomes),
+                                                   _borrow(ticks), _borrow(counters))
     for f in range(positions.shape[0] - 1):
         if timing:
             t_start = _ticks()
-        k, c, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
+        k, _, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
                                  use_cache, cache_n, cache_kind, False, False, timing, outcomes[f], entry, times,
-                                 points, normals, ticks[f], ws)
-        counters[f] = c
+                                 points, normals, ticks[f], counters[f], iv, owner, ws)
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
         if k >= 0:
@@ -476,15 +539,17 @@ class Scene:
         points = np.zeros((npairs, 3))
         normals = np.zeros((npairs, 3))
         ticks = np.zeros(npairs, dtype=np.int64)
-        best_k, counters, iv, owner = step_kernel(
+        counters = np.zeros(N_COUNTERS, dtype=np.int64)
+        best_k, niv, iv, owner = step_kernel(
             self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
             self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, points,
-            normals, ticks, workspace(len(self.radii), npairs))
+            normals, ticks, counters, np.empty((16 if all_pairs else 0, 2)),
+            np.empty(16 if all_pairs else 0, dtype=np.int64), workspace(self.radii, npairs, self.motion == "affine"))
         first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
         contacts = ()
         if all_pairs:
             rows = {}
-            for (a, b), k in zip(iv, owner):
+            for (a, b), k in zip(iv[:niv], owner[:niv]):
                 rows.setdefault(int(k), []).append((float(a), float(b)))
             contacts = tuple(self._contact(k, times, points, normals, tuple(rows.get(k, ())))
                              for k in np.nonzero(times >= 0.0)[0].tolist())

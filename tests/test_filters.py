@@ -24,13 +24,16 @@ def aligned(q0, q1):
 
 
 def supports(affine, radii, q0, q1):
-    T = np.empty((3, 3, 5))
-    den = np.empty(5)
+    """Inverse shape polynomials of one ellipsoid as arrays of one: T (1, 3, 3, 5) affine, factor U (1, 3, 3, 3) rigid."""
+    den = np.empty((1, 5))
+    args = (np.asarray(radii, float)[None], np.asarray(q0, float)[None], np.asarray(q1, float)[None])
     if affine:
-        fl.support_affine(radii, q0, q1, T, den)
+        S = np.empty((1, 3, 3, 5))
+        fl.support_affine(*args, S, den, 0, np.empty((8, 3, 3)))
     else:
-        fl.support_rigid(radii, q0, q1, T, den, np.empty((4, 3, 3)))
-    return T, den
+        S = np.empty((1, 3, 3, 3))
+        fl.support_rigid(*args, S, den, 0)
+    return S, den
 
 
 def witness_free(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1):
@@ -40,12 +43,13 @@ def witness_free(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1):
         plane = mjccd.separating_plane(mjccd.Ellipsoid(ra), (pa0, qa0), mjccd.Ellipsoid(rb), (pb0, qb0))
     except ValueError:
         return False
-    Ta, dena = supports(affine, ra, qa0, qa1)
-    Tb, denb = supports(affine, rb, qb0, qb1)
-    n1 = np.empty(3)
-    return fl.witness_variants(plane.normal, pa0, pa1, quat_to_matrix(qa0), quat_to_matrix(qa1), Ta, dena,
-                               pb0, pb1, quat_to_matrix(qb0), quat_to_matrix(qb1), Tb, denb, n1,
-                               np.empty(fl.WORK_SHAPE), 1) > 0
+    Sa, dena = supports(affine, ra, qa0, qa1)
+    Sb, denb = supports(affine, rb, qb0, qb1)
+    R0 = np.stack([quat_to_matrix(qa0), quat_to_matrix(qb0)])
+    R1 = np.stack([quat_to_matrix(qa1), quat_to_matrix(qb1)])
+    v, _ = fl.witness_variants(plane.normal, pa0, pa1, pb0, pb1, R0, R1, np.concatenate([Sa, Sb]),
+                               np.concatenate([dena, denb]), 0, 1, np.empty(fl.WORK_SHAPE), 1)
+    return v > 0
 
 
 # ---------------------------------------------------------------- spheres

@@ -198,19 +198,37 @@ def _chain_crossings(c, upper, stack, lo, hi):
 
 
 @_jit
-def _hull_crossing(c):
+def _hull_crossing(c, stack):
     """Where the convex hull of the control points (i/n, c[i]) meets zero, in O(n).
 
     The hull meets the axis in one segment [alpha, beta] whose ends lie on the
-    lower or the upper hull chain.  Returns (2, -1) when the hull misses the axis.
+    lower or the upper hull chain.  Returns (2, -1) when the hull misses the
+    axis.  ``stack`` is scratch of length n + 1.
     """
     n = c.shape[0] - 1
-    stack = np.empty(n + 1, dtype=np.int64)
     lo, hi = _chain_crossings(c, False, stack, 2.0 * n, -1.0)
     lo, hi = _chain_crossings(c, True, stack, lo, hi)
     if hi < 0.0:
         return 2.0, -1.0
     return lo / n, hi / n
+
+
+@_jit
+def _keep_left(c, t):
+    """In place: ``c`` becomes the coefficients on [0, t] (de Casteljau)."""
+    n = c.shape[0] - 1
+    for r in range(1, n + 1):
+        for i in range(n, r - 1, -1):
+            c[i] = (1.0 - t) * c[i - 1] + t * c[i]
+
+
+@_jit
+def _keep_right(c, t):
+    """In place: ``c`` becomes the coefficients on [t, 1] (de Casteljau)."""
+    n = c.shape[0] - 1
+    for r in range(1, n + 1):
+        for i in range(n - r + 1):
+            c[i] = (1.0 - t) * c[i] + t * c[i + 1]
 
 
 @_jit
@@ -222,6 +240,7 @@ def first_root(c, tol):
     interval is halved and the left half searched first.  The returned value
     is the lower end of the first interval of width <= ``tol`` that could not
     be excluded, so the polynomial has no root before it (up to rounding).
+    All work happens in place in a few buffers allocated once per call.
     """
     n = c.shape[0] - 1
     if n == 0:
@@ -231,13 +250,15 @@ def first_root(c, tol):
     stack_c = np.empty((max_depth, n + 1))
     stack_lo = np.empty(max_depth)
     stack_hi = np.empty(max_depth)
+    hull = np.empty(n + 1, dtype=np.int64)
+    cur = np.empty(n + 1)
     stack_c[0, :] = c
     stack_lo[0] = 0.0
     stack_hi[0] = 1.0
     top = 1
     while top > 0:
         top -= 1
-        cur = stack_c[top].copy()
+        cur[:] = stack_c[top]
         lo = stack_lo[top]
         hi = stack_hi[top]
         positive_at_lo = cur[0] > 0.0
@@ -249,23 +270,26 @@ def first_root(c, tol):
             width = hi - lo
             if width <= tol:
                 return lo
-            alpha, beta = _hull_crossing(cur)
+            alpha, beta = _hull_crossing(cur, hull)
             if alpha > beta:
                 break
             alpha = max(alpha, 0.0)
             beta = min(beta, 1.0)
             if beta - alpha > 0.7:
                 # clipping does not shrink enough: bisect, left half first
-                left, right = subdivide(cur, 0.5)
                 mid = lo + 0.5 * width
-                stack_c[top, :] = right
+                stack_c[top, :] = cur
+                _keep_right(stack_c[top], 0.5)
                 stack_lo[top] = mid
                 stack_hi[top] = hi
                 top += 1
-                cur = left
+                _keep_left(cur, 0.5)
                 hi = mid
                 continue
-            cur = restrict(cur, alpha, beta)
+            if beta < 1.0:
+                _keep_left(cur, beta)
+            if alpha > 0.0:
+                _keep_right(cur, alpha / beta if beta > 0.0 else 0.0)
             new_lo = lo + alpha * width
             new_hi = lo + beta * width
             lo, hi = new_lo, max(new_hi, new_lo)

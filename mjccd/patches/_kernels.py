@@ -614,7 +614,8 @@ def _sift_down(hf, hi, n):
 @_jit
 def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b, pairs,
            method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
-           depth_first_ties, manifold, simultaneity, separation, points_out, info_out):
+           depth_first_ties, frames_at_step_start, manifold, simultaneity, separation,
+           points_out, info_out):
     """Best-first subdivision search for the earliest contact (paper Alg. 2, or Alg. 1).
 
     roots_a: (Ka, Na, 7) homogeneous rows of the primitives of side A (likewise B);
@@ -626,6 +627,8 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
     time is the smaller of the accepted node's lower end and every queued lower end, so
     it stays a lower bound of the first contact. Every contour line is shifted outwards
     by ``rel`` times the largest absolute coordinate of all input control points.
+    OBB frames come from each sub-patch's shape at t = 0 (``frames_at_step_start``, the
+    paper's rule) or at the lower end of the parent's time interval (otherwise).
 
     Writes rows ``[t, u1, v1, u2, v2, x, y, z, pair]`` to ``points_out`` (one row, or up
     to ``points_out.shape[0]`` distinct points in manifold mode) and
@@ -839,17 +842,18 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                     nfreeB += 1
                 continue
         # subdivide both sides
+        t_frame = 0.0 if frames_at_step_start else tl
         for c in range(ca_n):
             _subdivide(sub_a[c], poolA[ia], na, chA[c])
             _child_region(kind_a, regA[ia], c, rgA[c])
             euclidean(chA[c], na, margin, eA0[c], eA1[c], shA[c])
-            frame(eA0[c], eA1[c], tl, corners_a, frA[c])
+            frame(eA0[c], eA1[c], t_frame, corners_a, frA[c])
             idxA[c] = ia if ca_n == 1 else -1
         for c in range(cb_n):
             _subdivide(sub_b[c], poolB[ib], nb, chB[c])
             _child_region(kind_b, regB[ib], c, rgB[c])
             euclidean(chB[c], nb, margin, eB0[c], eB1[c], shB[c])
-            frame(eB0[c], eB1[c], tl, corners_b, frB[c])
+            frame(eB0[c], eB1[c], t_frame, corners_b, frB[c])
             idxB[c] = ib if cb_n == 1 else -1
         full = False
         for ca in range(ca_n):
@@ -952,7 +956,7 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
 @_jit
 def search_batch(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                  method, use_obb, delta, t_max, rel, time_margin, max_iterations, max_nodes,
-                 depth_first_ties, toi_out, status_out, iterations_out):
+                 depth_first_ties, frames_at_step_start, toi_out, status_out, iterations_out):
     """One single-pair search per query q: roots_a[q] against roots_b[q] (shape (Q, 1, N, 7))."""
     pairs = np.zeros((1, 2), np.int64)
     points = np.empty((1, 9))
@@ -960,7 +964,8 @@ def search_batch(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, ro
     for q in range(roots_a.shape[0]):
         search(kind_a, corners_a, sub_a, roots_a[q], kind_b, corners_b, sub_b, roots_b[q],
                pairs, method, use_obb, delta, t_max, rel, time_margin, max_iterations,
-               max_nodes, depth_first_ties, False, 0.0, 0.0, points, info)
+               max_nodes, depth_first_ties, frames_at_step_start, False, 0.0, 0.0, points,
+               info)
         status_out[q] = info[0]
         iterations_out[q] = info[1]
         toi_out[q] = points[0, 0] if info[0] != NO_CONTACT else INF

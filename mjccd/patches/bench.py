@@ -20,11 +20,28 @@ from . import queries as Q
 from .primitives import Patch
 from .solver import first_contact
 
-# method variants: (solver method, queue order). "trad" is Alg. 1 exactly as written
-# (queue by the lower time end); "trad-depth" is the same with this package's queue order
-VARIANTS = {"trad": ("trad", "time"), "ours": ("ours", "depth"),
-            "trad-depth": ("trad", "depth"), "ours-time": ("ours", "time")}
-LABELS = {"trad": "Trad.", "ours": "Ours", "trad-depth": "Trad.-depth", "ours-time": "Ours-time"}
+# method variants: (solver method, queue order, OBB frames). "trad" is Alg. 1 exactly as
+# written (queue by the lower time end); "trad-depth" is the same with this package's queue
+# order; "-step" variants take every OBB frame from the sub-patch's shape at t = 0 (the
+# paper's rule) instead of at the start of the interval being refined
+VARIANTS = {"trad": ("trad", "time", "interval"), "ours": ("ours", "depth", "interval"),
+            "trad-depth": ("trad", "depth", "interval"), "ours-time": ("ours", "time", "interval"),
+            "trad-step": ("trad", "time", "step"), "ours-step": ("ours", "depth", "step")}
+LABELS = {"trad": "Trad.", "ours": "Ours", "trad-depth": "Trad.-depth", "ours-time": "Ours-time",
+          "trad-step": "Trad.-step", "ours-step": "Ours-step"}
+
+
+def _speedup_pairs(methods):
+    """(trad variant, ours variant) pairs that get a speed-up column."""
+    trads = [m for m in methods if VARIANTS[m][0] == "trad"]
+    ours = [m for m in methods if VARIANTS[m][0] == "ours"]
+    out = []
+    for t in trads:
+        for o in ours:
+            if VARIANTS[t][2] == VARIANTS[o][2] or len(ours) == 1:
+                out.append((t, o))
+    return out
+
 
 PAPER_T1_OURS_OBB = {  # paper Table 1, "Ours (OBB)" column [ms] for delta 1e-4, 1e-5, 1e-6
     ("triangle", 1): (4.26, 5.51, 6.68), ("triangle", 2): (22.40, 42.67, 90.87),
@@ -81,11 +98,11 @@ def run_table1(args):
     for m, inc in configs:
         for d in args.deltas:
             header.append(f"{LABELS[m]} ({inc.upper()}) {d:g}")
-    speedups = [t for t in ("trad", "trad-depth") if t in args.methods and "ours" in args.methods]
-    for t in speedups:
+    speedups = _speedup_pairs(args.methods)
+    for t, o in speedups:
         for inc in args.inclusions:
             for d in args.deltas:
-                header.append(f"{LABELS[t]}/Ours {inc.upper()} {d:g}")
+                header.append(f"{LABELS[t]}/{LABELS[o]} {inc.upper()} {d:g}")
     lines.append("| " + " | ".join(header) + " |")
     lines.append("|" + "---|" * len(header))
     raw = []
@@ -102,12 +119,14 @@ def run_table1(args):
             for m, inc in configs:
                 for d in args.deltas:
                     ts, cp, cap = [], 0, 0
-                    method, queue = VARIANTS[m]
+                    method, queue, frames = VARIANTS[m]
                     limit = args.trad_max_iterations if method == "trad" else 10_000_000
+                    nodes = args.trad_max_nodes if method == "trad" else 1 << 21
                     for a, b in cases:
                         t0 = time.perf_counter()
                         c = first_contact(a, b, method=method, inclusion=inc, delta=d,
-                                          max_iterations=limit, queue=queue)
+                                          max_iterations=limit, max_nodes=nodes, queue=queue,
+                                          obb_frames=frames)
                         ts.append(time.perf_counter() - t0)
                         cp += c is not None
                         cap += c is not None and c.status != "converged"
@@ -115,7 +134,8 @@ def run_table1(args):
                             bar.update(1)
                     times[m, inc, d] = 1e3 * float(np.mean(ts))
                     capped[m, inc, d] = cap
-                    if m == "ours" and inc == args.inclusions[-1] and d == args.deltas[-1]:
+                    if (hits is None or m == "ours") and method == "ours" and \
+                            inc == args.inclusions[-1] and d == args.deltas[-1]:
                         hits = cp
             if bar is not None:
                 bar.close()
@@ -126,10 +146,10 @@ def run_table1(args):
                     if capped[m, inc, d]:
                         cell += f" ({capped[m, inc, d]} capped)"
                     row.append(cell)
-            for t in speedups:
+            for t, o in speedups:
                 for inc in args.inclusions:
                     for d in args.deltas:
-                        s = times[t, inc, d] / times["ours", inc, d]
+                        s = times[t, inc, d] / times[o, inc, d]
                         row.append(("≥" if capped[t, inc, d] else "") + f"{s:.1f}×")
             lines.append("| " + " | ".join(row) + " |")
             raw.append({"kind": kind, "order": order, "cp": hits, "times": times,
@@ -147,7 +167,7 @@ def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, pro
     pairs = np.zeros((1, 2), np.int64)
     pts = np.empty((1, 9))
     info = np.zeros(4, np.int64)
-    method, queue = VARIANTS[variant]
+    method, queue, frames = VARIANTS[variant]
     m = K.OURS if method == "ours" else K.TRAD
     obb = inclusion == "obb"
     q = len(vertices)
@@ -160,7 +180,7 @@ def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, pro
         t0 = time.perf_counter()
         search(ka, ca, sa, ai, kb, cb, sb, bi, pairs, m, obb, delta, 1.0,
                Q.DEFAULT_MARGIN, Q.DEFAULT_TIME_MARGIN, max_iterations, 1 << 21, queue == "depth",
-               False, 0.0, 0.0, pts, info)
+               frames == "step", False, 0.0, 0.0, pts, info)
         per[i] = time.perf_counter() - t0
         hit[i] = info[0] != K.NO_CONTACT
         if bar is not None and i % 256 == 0:
@@ -171,7 +191,8 @@ def _time_queries(kind, vertices, variant, inclusion, delta, max_iterations, pro
         return hit, per, None
     t0 = time.perf_counter()
     toi, _ = Q.batch(kind, vertices, method=method, inclusion=inclusion, delta=delta,
-                     queue=queue, max_iterations=max_iterations, compiled_loop=True)
+                     queue=queue, obb_frames=frames, max_iterations=max_iterations,
+                     compiled_loop=True)
     batch_mean = (time.perf_counter() - t0) / q
     assert np.array_equal(np.isfinite(toi), hit)
     return hit, per, batch_mean
@@ -293,11 +314,14 @@ def build_parser():
     p.add_argument("--methods", type=_names(list(VARIANTS)), default=["trad", "ours"],
                    help="trad: Alg. 1 with the queue ordered by the lower time end (as in the "
                         "paper); ours: Alg. 2 with this package's queue order; trad-depth / "
-                        "ours-time: the other queue order")
+                        "ours-time: the other queue order; trad-step / ours-step: OBB frames "
+                        "from the shape at t = 0 (the paper's rule)")
     p.add_argument("--inclusions", type=_names(["aabb", "obb"]), default=["aabb", "obb"])
     p.add_argument("--trad-max-iterations", type=int, default=1_000_000,
                    help="Trad. cases stopped at this many iterations count as capped "
                         "(their time is then a lower bound)")
+    p.add_argument("--trad-max-nodes", type=int, default=1 << 21,
+                   help="Trad. queue size limit (a case stopped by it also counts as capped)")
     p.add_argument("--seed", type=int, default=2024)
     p.add_argument("--sets", type=_names(["handcrafted", "simulation"]),
                    default=["handcrafted", "simulation"])

@@ -91,7 +91,7 @@ def query_kernel_args(kind):
 
 def batch(kind, vertices, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0,
           margin=DEFAULT_MARGIN, time_margin=DEFAULT_TIME_MARGIN, max_iterations=1_000_000,
-          max_nodes=1 << 21, queue="depth", compiled_loop=False):
+          max_nodes=1 << 21, queue="depth", obb_frames="interval", compiled_loop=False):
     """Run many VF (``kind="vf"``) or EE (``"ee"``) queries without building Patch objects.
 
     Args:
@@ -104,7 +104,7 @@ def batch(kind, vertices, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA
         A query stopped by a limit counts as a (conservative) contact.
     """
     _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations, max_nodes,
-             queue)
+             queue, obb_frames)
     a, b = query_primitives(kind, vertices)
     ka, ca, sa, kb, cb, sb = query_kernel_args(kind)
     q = a.shape[0]
@@ -112,7 +112,8 @@ def batch(kind, vertices, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA
     status = np.empty(q, np.int64)
     its = np.empty(q, np.int64)
     args = (METHODS[method], inclusion == "obb", float(delta), float(t_max), float(margin),
-            float(time_margin), int(max_iterations), int(max_nodes), queue == "depth")
+            float(time_margin), int(max_iterations), int(max_nodes), queue == "depth",
+            obb_frames == "step")
     if compiled_loop:
         K.search_batch(ka, ca, sa, a, kb, cb, sb, b, *args, toi, status, its)
     else:

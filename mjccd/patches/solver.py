@@ -16,6 +16,7 @@ from .primitives import KIND_CODE, Patch, corner_indices, subdivision_matrices
 METHODS = {"ours": K.OURS, "trad": K.TRAD}
 INCLUSIONS = ("obb", "aabb")
 QUEUES = ("depth", "time")
+OBB_FRAMES = ("interval", "step")
 STATUS = {K.NO_CONTACT: "no_contact", K.CONTACT: "converged",
           K.MAX_ITERATIONS: "max_iterations", K.MAX_NODES: "max_nodes"}
 
@@ -85,7 +86,9 @@ class _Side:
 
 
 def _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations,
-             max_nodes, queue="depth"):
+             max_nodes, queue="depth", obb_frames="interval"):
+    if obb_frames not in OBB_FRAMES:
+        raise ValueError(f"`obb_frames`: expected 'interval' or 'step', got {obb_frames!r}")
     if queue not in QUEUES:
         raise ValueError(f"`queue`: expected 'depth' or 'time', got {queue!r}")
     if method not in METHODS:
@@ -106,9 +109,9 @@ def _options(method, inclusion, delta, t_max, margin, time_margin, max_iteration
 
 
 def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iterations,
-         max_nodes, queue, pairs, manifold, simultaneity, separation, max_points):
+         max_nodes, queue, obb_frames, pairs, manifold, simultaneity, separation, max_points):
     _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations, max_nodes,
-             queue)
+             queue, obb_frames)
     sa, sb = _Side(_as_set(a, "a")), _Side(_as_set(b, "b"))
     if pairs is None:
         pairs = np.array([(i, j) for i in range(len(sa.items)) for j in range(len(sb.items))],
@@ -123,8 +126,8 @@ def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iter
     K.search(sa.kind, sa.corners, sa.sub, sa.roots, sb.kind, sb.corners, sb.sub, sb.roots,
              np.ascontiguousarray(pairs), METHODS[method], inclusion == "obb", float(delta),
              float(t_max), float(margin), float(time_margin), int(max_iterations),
-             int(max_nodes), queue == "depth", manifold, float(simultaneity), float(separation),
-             points, info)
+             int(max_nodes), queue == "depth", obb_frames == "step", manifold,
+             float(simultaneity), float(separation), points, info)
     return sa, sb, pairs, points, info
 
 
@@ -143,7 +146,8 @@ def _contact(sa, sb, pairs, row, status, iterations):
 
 def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0,
                   margin=DEFAULT_MARGIN, time_margin=DEFAULT_TIME_MARGIN,
-                  max_iterations=10_000_000, max_nodes=1 << 21, queue="depth", pairs=None):
+                  max_iterations=10_000_000, max_nodes=1 << 21, queue="depth",
+                  obb_frames="interval", pairs=None):
     """Earliest contact between two moving primitives (or two sets of them), or None.
 
     Args:
@@ -159,6 +163,10 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
         queue: ``"depth"`` (default): candidates whose lower time ends lie within delta/16
             are ties and the smaller one goes first; ``"time"``: the lower end alone, as
             written in the paper's Alg. 1 and 2 (face contacts then grow the queue).
+        obb_frames: where a sub-patch's OBB axes come from: ``"interval"`` (default): its
+            shape at the lower end of the time interval being refined; ``"step"``: its
+            shape at t = 0, kept for the whole step (the paper's rule, Eq. 19-21). Both
+            are conservative; they differ only in how tight the boxes are.
         pairs: optional (P, 2) list of (i, j) primitive pairs to test (default: all).
 
     Returns:
@@ -167,8 +175,8 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
     sa, sb, pairs, points, info = _run(
         a, b, method=method, inclusion=inclusion, delta=delta, t_max=t_max, margin=margin,
         time_margin=time_margin, max_iterations=max_iterations, max_nodes=max_nodes,
-        queue=queue, pairs=pairs, manifold=False, simultaneity=0.0, separation=0.0,
-        max_points=1)
+        queue=queue, obb_frames=obb_frames, pairs=pairs, manifold=False, simultaneity=0.0,
+        separation=0.0, max_points=1)
     status = STATUS[int(info[0])]
     if status == "no_contact":
         return None
@@ -178,7 +186,7 @@ def first_contact(a, b, *, method="ours", inclusion="obb", delta=DEFAULT_DELTA, 
 def contact_manifold(a, b, *, simultaneity, separation, max_points=256, method="ours",
                      inclusion="obb", delta=DEFAULT_DELTA, t_max=1.0, margin=DEFAULT_MARGIN,
                      time_margin=DEFAULT_TIME_MARGIN, max_iterations=10_000_000,
-                     max_nodes=1 << 21, queue="depth", pairs=None):
+                     max_nodes=1 << 21, queue="depth", obb_frames="interval", pairs=None):
     """All distinct contact points within ``simultaneity`` of the earliest contact time.
 
     Points are at least ``separation`` apart (world distance between the side-A points);
@@ -197,8 +205,8 @@ def contact_manifold(a, b, *, simultaneity, separation, max_points=256, method="
     sa, sb, pairs, points, info = _run(
         a, b, method=method, inclusion=inclusion, delta=delta, t_max=t_max, margin=margin,
         time_margin=time_margin, max_iterations=max_iterations, max_nodes=max_nodes,
-        queue=queue, pairs=pairs, manifold=True, simultaneity=simultaneity, separation=separation,
-        max_points=int(max_points))
+        queue=queue, obb_frames=obb_frames, pairs=pairs, manifold=True,
+        simultaneity=simultaneity, separation=separation, max_points=int(max_points))
     stats = SearchStats(STATUS[int(info[0])], int(info[1]), int(info[3]))
     found = int(info[2])
     contacts = [_contact(sa, sb, pairs, points[k], "converged", int(info[1]))

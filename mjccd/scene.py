@@ -212,6 +212,28 @@ def workspace(radii, npairs, affine):
 
 
 @_jit
+def _split_poses(poses, p, q):
+    """Positions of (N, 7) poses into p and normalised quaternions into q.
+
+    Returns the first row holding NaN, infinity or a zero quaternion (its
+    error is then left to :func:`mjccd._validate.pose_array`), or -1.
+    """
+    for i in range(poses.shape[0]):
+        for m in range(7):
+            if not np.isfinite(poses[i, m]):
+                return i
+        norm = np.sqrt(poses[i, 3] * poses[i, 3] + poses[i, 4] * poses[i, 4] + poses[i, 5] * poses[i, 5]
+                       + poses[i, 6] * poses[i, 6])
+        if norm < 1e-12:
+            return i
+        for m in range(3):
+            p[i, m] = poses[i, m]
+        for m in range(4):
+            q[i, m] = poses[i, 3 + m] / norm
+    return -1
+
+
+@_jit
 def _sort_by_entry(cand, m, entry):
     """Stable insertion sort of cand[:m] by sphere-entry time (m is small)."""
     for a in range(1, m):
@@ -285,6 +307,9 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
             counters[6] += 1
         elif code == OVERLAP_T0:
             times[k] = 0.0
+            for m in range(3):  # no point or normal at t = 0 (the arrays carry over between frames)
+                points[k, m] = 0.0
+                normals[k, m] = 0.0
             if best > 0.0:
                 best, best_k = 0.0, k
             cand[ncand] = k
@@ -417,7 +442,7 @@ class FrameCounters:
 
     @classmethod
     def from_array(cls, c):
-        return cls(*(int(x) for x in c))
+        return cls(*np.asarray(c, dtype=np.int64).tolist())
 
 
 @dataclass(frozen=True)
@@ -505,6 +530,7 @@ class Scene:
             raise ValueError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, got {arr[same[0]].tolist()}")
         self.pairs = np.ascontiguousarray(arr)
         self.plane_cache = bool(plane_cache)
+        self._buffers = None
         self.reset_cache()
 
     def reset_cache(self):
@@ -512,9 +538,26 @@ class Scene:
         self._cache_n = np.zeros((len(self.pairs), 3))
         self._cache_kind = np.zeros(len(self.pairs), dtype=np.int8)
 
-    def _poses(self, poses, field):
-        p = _validate.pose_array(poses, field, len(self.radii))
-        return np.ascontiguousarray(p[:, :3]), np.ascontiguousarray(p[:, 3:])
+    def _poses(self, poses, field, p, q):
+        """Positions into p and normalised quaternions into q; a bad input raises naming ``field``."""
+        if (isinstance(poses, np.ndarray) and poses.dtype == np.float64 and poses.shape == (len(self.radii), 7)
+                and poses.flags.c_contiguous and _split_poses(poses, p, q) < 0):
+            return p, q
+        checked = _validate.pose_array(poses, field, len(self.radii))  # raises, or converts other input
+        p[:] = checked[:, :3]
+        q[:] = checked[:, 3:]
+        return p, q
+
+    def _frame_buffers(self):
+        """Per-frame arrays of :meth:`step`, allocated on first use and reused (results copy what they keep)."""
+        if self._buffers is None:
+            n, npairs = len(self.radii), len(self.pairs)
+            self._buffers = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 4)),
+                             np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs),
+                             np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
+                             np.zeros(N_COUNTERS, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
+                             workspace(self.radii, npairs, self.motion == "affine"))
+        return self._buffers
 
     def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
         """Check one frame.
@@ -530,21 +573,13 @@ class Scene:
         Returns:
             :class:`FrameResult`.
         """
-        p0, q0 = self._poses(poses_t0, "poses_t0")
-        p1, q1 = self._poses(poses_t1, "poses_t1")
-        npairs = len(self.pairs)
-        outcome = np.empty(npairs, dtype=np.int8)
-        entry = np.empty(npairs)
-        times = np.empty(npairs)
-        points = np.zeros((npairs, 3))
-        normals = np.zeros((npairs, 3))
-        ticks = np.zeros(npairs, dtype=np.int64)
-        counters = np.zeros(N_COUNTERS, dtype=np.int64)
+        p0, q0, p1, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = self._frame_buffers()
+        self._poses(poses_t0, "poses_t0", p0, q0)
+        self._poses(poses_t1, "poses_t1", p1, q1)
         best_k, niv, iv, owner = step_kernel(
             self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
             self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, points,
-            normals, ticks, counters, np.empty((16 if all_pairs else 0, 2)),
-            np.empty(16 if all_pairs else 0, dtype=np.int64), workspace(self.radii, npairs, self.motion == "affine"))
+            normals, ticks, counters, iv, owner, ws)
         first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
         contacts = ()
         if all_pairs:

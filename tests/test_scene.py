@@ -120,6 +120,34 @@ def test_overlap_at_start_is_time_zero():
     assert res.counters.overlapping_t0 == 1
 
 
+def test_overlap_after_a_contact_has_no_point():
+    """Frame 0: B reaches A at t = 2/3; frame 1: they overlap from the start, so no point or normal is left over."""
+    radii = np.full((2, 3), 0.5)
+    poses = np.zeros((3, 2, 7))
+    poses[:, :, 3] = 1.0
+    poses[:, 1, 0] = [2.0, 0.5, 0.5]
+    run = Scene(radii).run(poses)
+    assert run.time[0] == pytest.approx(2 / 3, abs=1e-9) and np.allclose(run.normal[0], [1, 0, 0], atol=1e-9)
+    assert run.time[1] == 0.0 and not run.point[1].any() and not run.normal[1].any()
+    scene = Scene(radii)
+    assert scene.step(poses[0], poses[1]).first.point is not None
+    later = scene.step(poses[1], poses[2])
+    assert later.first.time == 0.0 and later.first.point is None and later.first.normal is None
+
+
+def test_step_reads_poses_of_any_layout():
+    """Lists, Fortran-ordered and strided poses give the same frame as C-ordered float64 ones."""
+    radii, poses = random_frames(5, 2)
+    ref = Scene(radii).step(poses[0], poses[1], all_pairs=True)
+    wide = np.zeros((N, 9))
+    wide[:, :7] = poses[1]
+    for a, b in ((poses[0].tolist(), poses[1]), (np.asfortranarray(poses[0]), wide[:, :7])):
+        res = Scene(radii).step(a, b, all_pairs=True)
+        assert res.counters == ref.counters
+        assert [(c.pair, c.time) for c in res.contacts] == [(c.pair, c.time) for c in ref.contacts]
+    assert ref.contacts
+
+
 def test_new_contacts_only_skips_pairs_overlapping_at_start():
     """Pair 0 overlaps from the start; pair 1 first touches at t = 0.25; pair 2 later, at 6/7."""
     radii = np.full((6, 3), 0.5)

@@ -246,7 +246,7 @@ def _sort_by_entry(cand, m, entry):
         cand[b + 1] = k
 
 
-@_inline
+@_jit
 def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only,
                 timing, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws):
     """One frame over all pairs.  Fills the per-pair arrays and ``counters``; returns (best pair, rows, iv, owner).
@@ -371,26 +371,27 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
 
 
 @_jit
-def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_kind, timing,
-               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks):
-    """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache."""
-    npairs = pairs.shape[0]
-    entry = np.empty(npairs)
-    times = np.empty(npairs)
-    points = np.zeros((npairs, 3))
-    normals = np.zeros((npairs, 3))
-    iv = np.empty((0, 2))
-    owner = np.empty(0, dtype=np.int64)
+def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only, timing,
+               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks,
+               entry, times, points, normals, iv, owner, ws):
+    """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache.
+
+    ``all_pairs`` must be False (first contacts only; it is an argument so that
+    :func:`step_kernel` is compiled once for both callers, not once more for a
+    constant).  ``entry`` ... ``ws`` are the per-frame arrays of :func:`step_kernel`.  All
+    arrays are owned by the caller for the whole call, so they are borrowed
+    here: the per-frame views and calls are then free of reference counting.
+    """
+    radii, positions, quats, pairs, cache_n, cache_kind = (_borrow(radii), _borrow(positions), _borrow(quats),
+                                                           _borrow(pairs), _borrow(cache_n), _borrow(cache_kind))
+    counters, outcomes, ticks = _borrow(counters), _borrow(outcomes), _borrow(ticks)
+    entry, times, points, normals = _borrow(entry), _borrow(times), _borrow(points), _borrow(normals)
     t_start = 0
-    ws = workspace(radii, npairs, affine)
-    # the per-frame views below are then free of reference counting (all of these live through the call)
-    positions, quats, outcomes, ticks, counters = (_borrow(positions), _borrow(quats), _borrow(outcomes),
-                                                   _borrow(ticks), _borrow(counters))
     for f in range(positions.shape[0] - 1):
         if timing:
             t_start = _ticks()
         k, _, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
-                                 use_cache, cache_n, cache_kind, False, False, timing, outcomes[f], entry, times,
+                                 use_cache, cache_n, cache_kind, all_pairs, new_only, timing, outcomes[f], entry, times,
                                  points, normals, ticks[f], counters[f], iv, owner, ws)
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
@@ -597,11 +598,12 @@ class Scene:
                            None if at_start else points[k].copy(), None if at_start else normals[k].copy(),
                            intervals)
 
-    def run(self, poses, *, timing=False):
+    def run(self, poses, *, timing=False, new_contacts_only=False):
         """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
 
         The plane cache carries from frame to frame (and into later calls).
-        ``timing`` records CPU cycles per pair (for benchmarks).
+        ``timing`` records CPU cycles per pair (for benchmarks);
+        ``new_contacts_only`` as in :meth:`step`.
         """
         arr = _validate.array(poses, (None, len(self.radii), 7), "poses")
         if arr.shape[0] < 2:
@@ -617,7 +619,9 @@ class Scene:
         out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
                         np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
+        _, _, _, _, _, entry, times, points, normals, _, _, iv, owner, ws = self._frame_buffers()
         run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.plane_cache,
-                   self._cache_n, self._cache_kind, bool(timing), out.time, out.pair, out.point, out.normal,
-                   out.counters, out.outcomes, out.ticks, out.frame_ticks)
+                   self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing), out.time, out.pair, out.point, out.normal,
+                   out.counters, out.outcomes, out.ticks, out.frame_ticks, entry, times, points, normals, iv, owner,
+                   ws)
         return out

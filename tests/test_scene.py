@@ -93,6 +93,16 @@ def test_run_equals_steps_and_cache_changes_nothing():
     assert Scene(radii).run(poses).counters[:, 2].sum() > 0  # the cache was used
 
 
+def test_run_new_contacts_only_equals_steps():
+    radii, poses = random_frames(8, 12)
+    steps = Scene(radii)
+    firsts = [steps.step(poses[f], poses[f + 1], new_contacts_only=True).first for f in range(12)]
+    run = Scene(radii).run(poses, new_contacts_only=True)
+    assert [-1.0 if c is None else c.time for c in firsts] == run.time.tolist()
+    assert any(c is not None and c.time > 0 for c in firsts)
+    assert np.any(run.time != Scene(radii).run(poses).time)  # some frame starts overlapping: the option matters
+
+
 def test_earliest_contact_bound_prunes_later_pairs():
     """Pair 0 hits at t = 0.25, pair 1 only later: pair 1 is not solved, its sphere entry is too late."""
     radii = np.full((4, 3), 0.5)

@@ -143,6 +143,37 @@ def test_moving_sphere_rejects_unknown_input():
 # ---------------------------------------------------------------- separating plane
 
 
+@pytest.mark.parametrize("affine", [False, True])
+def test_inverse_shape_polynomials(affine):
+    """n(t)^T Q(t)^-1 n(t) den(t) from the rigid factor U or the affine T, against Q(t) built directly."""
+    radii = np.array([0.3, 0.1, 0.2])
+    q0 = rand_quat()
+    q1 = aligned(q0, rand_quat())
+    S, den = supports(affine, radii, q0, q1)
+    n0, n1 = rng.normal(size=3), rng.normal(size=3)
+    work = np.zeros(fl.WORK_SHAPE)
+    scale = fl._normal_form(S, 0, n0, n1, work, 0)
+
+    def scaled(c, t):
+        d = len(c) - 1
+        return sum(ck * (1 - t) ** (d - k) * t ** k for k, ck in enumerate(c))
+
+    for t in np.linspace(0.0, 1.0, 7):
+        if affine:
+            Q = sum(w * quat_to_matrix(q) @ np.diag(radii ** -2.0) @ quat_to_matrix(q).T
+                    for w, q in ((1 - t, q0), (t, q1)))
+            inv = np.linalg.inv(Q)
+        else:
+            R = quat_to_matrix(unit((1 - t) * q0 + t * q1))
+            inv = R @ np.diag(radii ** 2) @ R.T
+        n = (1 - t) * n0 + t * n1
+        assert scaled(work[0, :7], t) == pytest.approx(n @ inv @ n * scaled(den[0], t), rel=1e-9)
+        assert scale >= np.abs(work[0, :7]).max()
+    for k, (n, q) in ((0, (n0, q0)), (4, (n1, q1))):
+        R = quat_to_matrix(q)
+        assert fl.support_at(S, den, 0, n, k) == pytest.approx(np.sqrt(n @ R @ np.diag(radii ** 2) @ R.T @ n))
+
+
 def test_witness_sees_a_mid_frame_crossing():
     """A needle turning through a plane between two clear end poses: both ends pass, the frame must not."""
     needle = np.array([1.0, 0.1, 0.1])

@@ -78,6 +78,19 @@ def test_no_false_negative_on_the_handcrafted_set(kind, method, inclusion):
 
 
 @needs_data
+@pytest.mark.parametrize("kind", ["vf", "ee"])
+def test_margins_are_what_keeps_the_handcrafted_set_free_of_misses(kind):
+    """The set is full of exact touches; without margins OBB misses some of them, with the
+    small margin used by the ellipsoid cross-check (1e-8) it misses none."""
+    vertices, truth = Q.load_dataset("handcrafted", kind)
+    pos = vertices[truth]
+    toi, _ = Q.batch(kind, pos, margin=1e-8, time_margin=1e-8)
+    assert np.isfinite(toi).all()
+    toi, _ = Q.batch(kind, pos, margin=0.0, time_margin=0.0)
+    assert (~np.isfinite(toi)).sum() > 10
+
+
+@needs_data
 @pytest.mark.parametrize("kind", ["vf", pytest.param("ee", marks=SLOW)])
 def test_trad_has_no_false_negative_on_the_handcrafted_set(kind):
     vertices, truth = Q.load_dataset("handcrafted", kind)
@@ -88,14 +101,44 @@ def test_trad_has_no_false_negative_on_the_handcrafted_set(kind):
 @needs_data
 @SLOW
 @pytest.mark.parametrize("kind", ["vf", "ee"])
-@pytest.mark.parametrize("method,inclusion", [("ours", "obb"), ("ours", "aabb"),
-                                              ("trad", "obb"), ("trad", "aabb")])
-def test_no_false_negative_on_the_simulation_set(kind, method, inclusion):
+@pytest.mark.parametrize("inclusion", ["obb", "aabb"])
+def test_ours_has_no_false_negative_on_the_simulation_set(kind, inclusion):
     vertices, truth = Q.load_dataset("simulation", kind)
-    # a query stopped by the iteration cap reports a (conservative) contact
-    toi, _ = Q.batch(kind, vertices[truth], method=method, inclusion=inclusion, delta=1e-6,
-                     max_iterations=20_000)
+    pos = vertices[truth]
+    toi, status = Q.batch(kind, pos, inclusion=inclusion, delta=1e-6, max_iterations=20_000,
+                          compiled_loop=True)
     assert np.isfinite(toi).all()
+    # a query stopped by the cap would count as a (conservative) contact; do not let the
+    # cap decide: rerun those with the default limit, they must converge to a contact
+    capped = np.nonzero(status != "converged")[0]
+    if inclusion == "obb":
+        assert len(capped) == 0
+    assert len(capped) <= 30  # measured: AABB 1 (vf) and 15 (ee) at 20,000 iterations
+    toi, status = Q.batch(kind, pos[capped], inclusion=inclusion, delta=1e-6)
+    assert np.isfinite(toi).all() and (status == "converged").all()
+
+
+@needs_data
+@SLOW
+@pytest.mark.parametrize("kind", ["vf", "ee"])
+@pytest.mark.parametrize("inclusion", ["obb", "aabb"])
+def test_trad_has_no_false_negative_on_the_simulation_set(kind, inclusion):
+    """Trad. (Alg. 1) at 20,000 iterations per query: nearly every query of this set
+    collides, and Trad. bisects time, so a fraction stops at the cap and reports its
+    smallest open lower bound, a conservative contact. The converged ones must all be
+    contacts; the capped share is bounded (per set, from the measured counts) so that it
+    cannot grow silently."""
+    vertices, truth = Q.load_dataset("simulation", kind)
+    toi, status = Q.batch(kind, vertices[truth], method="trad", inclusion=inclusion,
+                          delta=1e-6, max_iterations=20_000, compiled_loop=True)
+    assert np.isfinite(toi).all()
+    assert set(status) <= {"converged", "max_iterations"}
+    # measured capped counts: vf 846 (OBB) / 351 (AABB) of 5442; ee 2059 (OBB) / 205
+    # (AABB) of 4286. Half of the edge-edge queries stop at the cap under OBB: for those,
+    # only the conservative reading backs "no false negative"
+    share = {("vf", "obb"): 0.2, ("vf", "aabb"): 0.1, ("ee", "obb"): 0.55,
+             ("ee", "aabb"): 0.1}[kind, inclusion]
+    assert (status == "max_iterations").mean() < share
 
 
 @needs_data

@@ -437,23 +437,18 @@ def search_exit(F, Fabs, noise, t_start, t_end):
             span_t = max(span_t, C[i].max() - C[i].min())
         for j in range(C.shape[1]):
             span_u = max(span_u, C[:, j].max() - C[:, j].min())
-        if span_t >= span_u:
+        if span_t >= span_u:  # halve the wider direction: t (first half ends at tm) or u
             a, b = _split_t(C)
-            tm = 0.5 * (t0 + t1)
-            boxes.append(a)
-            ends.append(tm)
-            heapq.heappush(heap, (t0, len(boxes) - 1))
-            boxes.append(b)
-            ends.append(t1)
-            heapq.heappush(heap, (tm, len(boxes) - 1))
+            a_end = b_start = 0.5 * (t0 + t1)
         else:
             a, b = _split_u(C)
-            boxes.append(a)
-            ends.append(t1)
-            heapq.heappush(heap, (t0, len(boxes) - 1))
-            boxes.append(b)
-            ends.append(t1)
-            heapq.heappush(heap, (t0, len(boxes) - 1))
+            a_end, b_start = t1, t0
+        boxes.append(a)
+        ends.append(a_end)
+        heapq.heappush(heap, (t0, len(boxes) - 1))
+        boxes.append(b)
+        ends.append(t1)
+        heapq.heappush(heap, (b_start, len(boxes) - 1))
     return 2.0
 
 

@@ -334,6 +334,11 @@ class Static(_WMotion):
         super().__init__(*_pose_w(self.position, self.quaternion))
 
 
+def _end_poses(position0, quaternion0, position1, quaternion1):
+    """Validated start and end poses of a two-pose motion."""
+    return (_validate.vector(position0, 3, "start.position"), _validate.quaternion(quaternion0, "start.quaternion"),
+            _validate.vector(position1, 3, "end.position"), _validate.quaternion(quaternion1, "end.quaternion"))
+
 
 class Rigid(_WMotion):
     """Centre lerp and quaternion lerp: ``R(t) = rot(q(t)) / |q(t)|^2``, rational of degree 2."""
@@ -341,10 +346,9 @@ class Rigid(_WMotion):
     kind = "rigid"
 
     def __init__(self, position0, quaternion0, position1, quaternion1):
-        self.position0 = _validate.vector(position0, 3, "start.position")
-        self.quaternion0 = _validate.quaternion(quaternion0, "start.quaternion")
-        self.position1 = _validate.vector(position1, 3, "end.position")
-        self.quaternion1 = _aligned(self.quaternion0, _validate.quaternion(quaternion1, "end.quaternion"))
+        self.position0, self.quaternion0, self.position1, q1 = _end_poses(position0, quaternion0,
+                                                                          position1, quaternion1)
+        self.quaternion1 = _aligned(self.quaternion0, q1)
         rot = w_of_rotation(_linear_bernstein(self.quaternion0, self.quaternion1))
         shift = w_of_translation(_linear_bernstein(self.position0, self.position1))
         super().__init__(*w_compose(*shift, *rot))
@@ -354,17 +358,14 @@ class Rigid(_WMotion):
                              self.position1, self.quaternion1)
 
 
-
 class Affine(Motion):
     """The thesis' affine interpolant: centre and shape matrix ``Q = R D R^T`` both lerped."""
 
     kind = "affine"
 
     def __init__(self, position0, quaternion0, position1, quaternion1):
-        self.position0 = _validate.vector(position0, 3, "start.position")
-        self.quaternion0 = _validate.quaternion(quaternion0, "start.quaternion")
-        self.position1 = _validate.vector(position1, 3, "end.position")
-        self.quaternion1 = _validate.quaternion(quaternion1, "end.quaternion")
+        self.position0, self.quaternion0, self.position1, self.quaternion1 = _end_poses(
+            position0, quaternion0, position1, quaternion1)
 
     def quadric(self, radii):
         return quadric_affine(np.asarray(radii, float), self.position0, self.quaternion0,

@@ -80,24 +80,24 @@ class Kinematics:
         self.model = model
         self.data = mujoco.MjData(model)
 
-    def body_poses(self, state):
-        """World (xpos (nbody, 3), xquat (nbody, 4)) of every body in ``state``."""
+    def _forward(self, state):
+        """The private MjData with the body poses of ``state``."""
         d = self.data
         d.qpos[:] = state.qpos
         if self.model.nmocap:
             d.mocap_pos[:] = state.mocap_pos
             d.mocap_quat[:] = state.mocap_quat
         mujoco.mj_kinematics(self.model, d)
+        return d
+
+    def body_poses(self, state):
+        """World (xpos (nbody, 3), xquat (nbody, 4)) of every body in ``state``."""
+        d = self._forward(state)
         return d.xpos.copy(), d.xquat.copy()
 
     def ellipsoid_poses(self, state, body_ids, positions, quaternions):
         """(N, 7) world poses [x, y, z, qw, qx, qy, qz] of ellipsoids fixed in bodies."""
-        d = self.data
-        d.qpos[:] = state.qpos
-        if self.model.nmocap:
-            d.mocap_pos[:] = state.mocap_pos
-            d.mocap_quat[:] = state.mocap_quat
-        mujoco.mj_kinematics(self.model, d)
+        d = self._forward(state)
         out = np.empty((len(body_ids), 7))
         ellipsoid_poses_into(d.xpos, d.xquat, np.ascontiguousarray(body_ids, dtype=np.int64),
                              np.ascontiguousarray(positions, dtype=float),

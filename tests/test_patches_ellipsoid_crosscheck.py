@@ -7,12 +7,9 @@ solver. Both must agree on collide / not, and on the first contact time within d
 import numpy as np
 import pytest
 
+import mjccd
 from mjccd.patches import first_contact
 from mjccd.patches.ellipsoid import ellipsoid_patches
-
-mjccd = pytest.importorskip("mjccd")
-if not hasattr(mjccd, "solve_cases"):
-    pytest.skip("the algebraic solver (mjccd.solve_cases) is not available", allow_module_level=True)
 
 DELTA = 1e-6
 # The contour shift is relative to the largest coordinate (about 5 here). The rounding it

@@ -378,9 +378,18 @@ def static_status_pose(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
 
 @_jit
 def static_status_batch(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b, out):
-    """Status codes of many posed pairs at once (one row per pair; unit quaternions)."""
+    """Status codes of many posed pairs at once (one row per pair; unit quaternions).
+
+    Rows go in as tuples of scalars: a row view would cost an atomic reference
+    count update each, about as much as the test itself.
+    """
     for k in range(out.shape[0]):
-        out[k] = static_status_pose(radii_a[k], pos_a[k], quat_a[k], radii_b[k], pos_b[k], quat_b[k])
+        out[k] = static_status_pose((radii_a[k, 0], radii_a[k, 1], radii_a[k, 2]),
+                                    (pos_a[k, 0], pos_a[k, 1], pos_a[k, 2]),
+                                    (quat_a[k, 0], quat_a[k, 1], quat_a[k, 2], quat_a[k, 3]),
+                                    (radii_b[k, 0], radii_b[k, 1], radii_b[k, 2]),
+                                    (pos_b[k, 0], pos_b[k, 1], pos_b[k, 2]),
+                                    (quat_b[k, 0], quat_b[k, 1], quat_b[k, 2], quat_b[k, 3]))
     return out
 
 

@@ -291,6 +291,7 @@ def test_step_check_prefilter_never_hides_a_contact(motion):
                 hits += 1
                 assert lean is not None and lean.fraction == exact.fraction and lean.ellipsoids == exact.ellipsoids
                 assert lean.time == exact.time
+                assert np.array_equal(lean.point, exact.point) and np.array_equal(lean.normal, exact.normal)
     assert cleared > 50 and hits > 3
 
 
@@ -299,3 +300,26 @@ def test_guard_names_are_exported():
 
     assert mm.GuardedStepper is GuardedStepper and mm.GuardedWrapper is GuardedWrapper
     assert mm.GuardReport.__name__ == "GuardReport" and "GuardedStepper" in mm.__all__
+
+
+
+def test_step_check_follow_reuses_the_end_poses():
+    from mjccd.mujoco import CCDMonitor
+    from mjccd.mujoco.guard import StepCheck
+
+    model = mujoco.MjModel.from_xml_string(BOX)
+    data = mujoco.MjData(model)
+    data.qvel[:] = 1.0
+    mujoco.mj_forward(model, data)
+    check = StepCheck(CCDMonitor(model, data, fit_model(model, per="geom"), report_overlapping=False))
+    check.begin(data)
+    mujoco.mj_step(model, data)
+    check.end_may_touch(data)
+    end = check.poses[1].copy()
+    check.follow()
+    assert np.array_equal(check.poses[0], end)
+    mujoco.mj_step(model, data)
+    check.end_may_touch(data)
+    followed = [p.copy() for p in check.poses]
+    check.begin(data)  # what a fresh begin of the same state would record
+    assert np.array_equal(check.poses[0], followed[1])

@@ -117,10 +117,10 @@ class GuardedStepper:
 
     def step(self, nstep=1):
         """Advance ``nstep`` timesteps, each guarded; the :class:`GuardReport` of the last one."""
-        n = _positive(nstep, "nstep", integer=True)
-        m, d = self.model, self.data
-        for _ in range(n):
-            self.guarded_step(lambda: mujoco.mj_step(m, d))
+        if type(nstep) is int and nstep == 1:
+            return self.guarded_step(None)
+        for _ in range(_positive(nstep, "nstep", integer=True)):
+            self.guarded_step(None)
         return self.last_report
 
     # ------------------------------------------------------------ checks
@@ -147,23 +147,31 @@ class GuardedStepper:
 
         ``finish()``, when given, runs after a step that was clamped (dm-control
         uses it to bring the derived quantities up to date with ``mj_step1``).
+        ``full_step`` None is ``mujoco.mj_step(model, data)``.
         """
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
             fast.begin(d)
-            full_step()
+            if full_step is None:
+                mujoco.mj_step(m, d)
+            else:
+                full_step()
             if not fast.end_may_touch(d):
-                report = self._plain.get(m.opt.timestep)
+                dt = m.opt.timestep
+                report = self._plain.get(dt)
                 if report is None:
-                    report = self._plain_report(m.opt.timestep)
+                    report = self._plain_report(dt)
                 self.last_report = report
                 return report
             hit = fast.first((float(self._state0[0]), float(d.time)))
         else:
             start = capture(d)
-            full_step()
+            if full_step is None:
+                mujoco.mj_step(m, d)
+            else:
+                full_step()
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = m.opt.timestep
@@ -203,7 +211,7 @@ class GuardedStepper:
                         substeps.append(h)
                         remaining -= h
                         length = min(remaining, self.contact_step * dt)
-                        hit = self._piece(length)
+                        hit = self._piece(length, False)
                         continue
                 elif hit is not None:
                     exhausted = True
@@ -212,7 +220,7 @@ class GuardedStepper:
                     break
                 remaining -= length
                 length = remaining
-                hit = self._piece(length)
+                hit = self._piece(length, True)
         finally:
             m.opt.timestep = dt
         if rollbacks and finish is not None:
@@ -224,11 +232,19 @@ class GuardedStepper:
                 self.on_clamp(c)
         return self.last_report
 
-    def _piece(self, length):
-        """Save the state, take one MuJoCo step of ``length`` seconds, and check it."""
+    def _piece(self, length, follows):
+        """Save the state, take one MuJoCo step of ``length`` seconds, and check it.
+
+        ``follows``: the data is still the end state of the piece checked last (nothing was rolled back
+        or stepped since), so the lean check reuses its poses without reading the state again.
+        """
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
-        start = self._begin(d)
+        if follows and self._fast is not None:
+            self._fast.follow()
+            start = None
+        else:
+            start = self._begin(d)
         m.opt.timestep = length
         mujoco.mj_step(m, d)
         return self._hit(d, start)

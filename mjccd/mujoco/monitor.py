@@ -7,7 +7,7 @@ import numpy as np
 from mjccd.ccd import first_contact
 from mjccd.motion import Static
 from mjccd.quadric import Ellipsoid, static_status_pose
-from mjccd.scene import Scene
+from mjccd.scene import Scene, step_kernel
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, ellipsoid_poses_into,
                                   motions_between, pairs_may_touch, poses_then_may_touch, sweep_sphere)
@@ -340,6 +340,8 @@ class StepCheck:
         self._key = np.empty(size)
         # slot: [private data, key bytes of its state (None: empty), poses]
         self._slots = [[mujoco.MjData(m), None, np.empty((n, 7))] for _ in range(2)]
+        # the body poses of each private data (MjData arrays are views of its own memory: fetched once)
+        self._xposes = [(slot[0].xpos, slot[0].xquat) for slot in self._slots]
         self._start = self._end = 0
         self.body_ids = np.ascontiguousarray(monitor.body_ids, dtype=np.int64)
         self.positions = np.ascontiguousarray(monitor.ellipsoids.positions, dtype=float)
@@ -362,6 +364,13 @@ class StepCheck:
         mujoco.mj_kinematics(self.model, kd)
         slot[1] = kb
         return kd
+
+    def follow(self):
+        """Record the state seen at the last ``end`` as the start of the next step, without reading it.
+
+        Only valid when the data has not changed since that ``end`` (the guard's next piece of a step).
+        """
+        self._start = self._end
 
     def begin(self, data):
         """Record the state at the start of a step."""
@@ -388,9 +397,10 @@ class StepCheck:
             self._end = start
             return self.may_touch()
         idx = 1 - start
-        kd = self._fill(idx, kb)
+        self._fill(idx, kb)
         self._end = idx
-        return poses_then_may_touch(kd.xpos, kd.xquat, self.body_ids, self._local, self.radii, self.rmax,
+        xpos, xquat = self._xposes[idx]
+        return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, self.radii, self.rmax,
                                     slots[start][2], slots[idx][2], self.pairs, self.affine)
 
     @property
@@ -410,10 +420,31 @@ class StepCheck:
         """
         mon = self.monitor
         p0, p1 = self.poses
-        c = mon._scene.step(p0, p1, new_contacts_only=True).first
-        if c is None:
+        k, time, point, normal = self._first_new(mon._scene, p0, p1)
+        if k < 0:
             return None
-        i, j = self.pairs[c.pair]
+        i, j = self.pairs[k]
         t0, t1 = (None, None) if times is None else times
-        return mon._contact(State(None, None, None, t0), State(None, None, None, t1), i, j, c.time, c.point,
-                            c.normal, p0)
+        return mon._contact(State(None, None, None, t0), State(None, None, None, t1), i, j, time, point,
+                            normal, p0)
+
+    @staticmethod
+    def _first_new(scene, p0, p1):
+        """:meth:`Scene.step` ``(p0, p1, new_contacts_only=True)``'s first contact as (pair, time, point, normal).
+
+        The same compiled kernel on the same buffers and plane cache, without the result objects
+        (pair -1 when there is none).
+        """
+        q0_p, q0, q1_p, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = \
+            scene._frame_buffers()
+        scene._poses(p0, "poses_t0", q0_p, q0)
+        scene._poses(p1, "poses_t1", q1_p, q1)
+        k, _, _, _ = step_kernel(scene.motion == "affine", scene.radii, q0_p, q0, q1_p, q1, scene.pairs,
+                                 scene.plane_cache, scene._cache_n, scene._cache_kind, False, True, False, outcome,
+                                 entry, times, points, normals, ticks, counters, iv, owner, ws)
+        if k < 0:
+            return -1, None, None, None
+        t = float(times[k])
+        if t == 0.0 and not normals[k].any():  # as Scene: no point or normal for a pair not separate at t = 0
+            return int(k), t, None, None
+        return int(k), t, points[k].copy(), normals[k].copy()

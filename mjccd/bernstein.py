@@ -36,26 +36,32 @@ def binomial_row(n):
 
 
 @_jit
-def evaluate(c, t):
-    """Value of the Bernstein polynomial ``c`` at ``t`` (Horner in t/(1-t), O(n))."""
-    n = c.shape[0] - 1
+def evaluate_row(F, i, t):
+    """Value at ``t`` of the Bernstein polynomial in row i of ``F`` (Horner in t/(1-t), O(n), no view)."""
+    n = F.shape[1] - 1
     if n == 0:
-        return c[0]
+        return F[i, 0]
     if t <= 0.5:
         s = t / (1.0 - t)
-        acc = c[n]
+        acc = F[i, n]
         binom = 1.0
-        for i in range(n - 1, -1, -1):
-            binom = binom * (i + 1) / (n - i)
-            acc = acc * s + binom * c[i]
+        for k in range(n - 1, -1, -1):
+            binom = binom * (k + 1) / (n - k)
+            acc = acc * s + binom * F[i, k]
         return acc * (1.0 - t) ** n
     s = (1.0 - t) / t
-    acc = c[0]
+    acc = F[i, 0]
     binom = 1.0
-    for i in range(1, n + 1):
-        binom = binom * (n - i + 1) / i
-        acc = acc * s + binom * c[i]
+    for k in range(1, n + 1):
+        binom = binom * (n - k + 1) / k
+        acc = acc * s + binom * F[i, k]
     return acc * t ** n
+
+
+@_jit
+def evaluate(c, t):
+    """Value of the Bernstein polynomial ``c`` at ``t``."""
+    return evaluate_row(c.reshape((1, c.shape[0])), 0, t)
 
 
 @_jit
@@ -76,13 +82,20 @@ def subdivide(c, t):
 
 
 @_jit
+def restrict_into(c, a, b):
+    """In place: ``c`` reparametrised from [a, b] onto [0, 1]."""
+    if b < 1.0:
+        _keep_left(c, b)
+    if a > 0.0:
+        _keep_right(c, a / b if b > 0.0 else 0.0)
+
+
+@_jit
 def restrict(c, a, b):
     """Coefficients of the same polynomial reparametrised from [a, b] onto [0, 1]."""
-    if b < 1.0:
-        c, _ = subdivide(c, b)
-    if a > 0.0:
-        _, c = subdivide(c, a / b if b > 0.0 else 0.0)
-    return c
+    out = c.copy()
+    restrict_into(out, a, b)
+    return out
 
 
 @_jit
@@ -306,17 +319,23 @@ def first_root(c, tol):
 
 
 @_jit
+def bivariate_at_u_into(F, u, out):
+    """In ``out``: the univariate polynomial in t, F(u, .) for fixed u (coefficients in t)."""
+    m = F.shape[0] - 1
+    out[:] = 0.0
+    w_binom = 1.0
+    for i in range(m + 1):
+        w = w_binom * u ** i * (1.0 - u) ** (m - i)
+        for j in range(F.shape[1]):
+            out[j] += w * F[i, j]
+        w_binom = w_binom * (m - i) / (i + 1)
+    return out
+
+
+@_jit
 def bivariate_at_u(F, u):
     """Univariate polynomial in t: F(u, .) for fixed u (coefficients in t)."""
-    m = F.shape[0] - 1
-    n = F.shape[1] - 1
-    bm = binomial_row(m)
-    out = np.zeros(n + 1)
-    for i in range(m + 1):
-        w = bm[i] * u ** i * (1.0 - u) ** (m - i)
-        for j in range(n + 1):
-            out[j] += w * F[i, j]
-    return out
+    return bivariate_at_u_into(F, u, np.empty(F.shape[1]))
 
 
 @_jit
@@ -325,7 +344,7 @@ def bivariate_at_t(F, t):
     m = F.shape[0] - 1
     out = np.empty(m + 1)
     for i in range(m + 1):
-        out[i] = evaluate(F[i], t)
+        out[i] = evaluate_row(F, i, t)
     return out
 
 

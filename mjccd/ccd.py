@@ -33,7 +33,7 @@ from numba.typed import List
 from mjccd import _validate
 from mjccd import bernstein as bz
 from mjccd.motion import Motion, quadric_at, quadric_rigid
-from mjccd.quadric import (STATUS_NAMES, Ellipsoid, det4, quartic_max, status_from_max,
+from mjccd.quadric import (STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
                            touching_point)
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -145,8 +145,9 @@ def build_F(PA, UA, sA, PB, UB, sB):
 
 @_jit
 def state(F, t):
-    """max_u F(u, t) and its argmax."""
-    return quartic_max(bz.bivariate_at_t(F, t))
+    """max_u F(u, t) and its argmax (F is quartic in u)."""
+    return quartic_max5(bz.evaluate_row(F, 0, t), bz.evaluate_row(F, 1, t), bz.evaluate_row(F, 2, t),
+                        bz.evaluate_row(F, 3, t), bz.evaluate_row(F, 4, t))
 
 
 @_jit
@@ -157,12 +158,11 @@ def status_at(F, Fabs, noise, t):
     (relative, from construction and evaluation) times the same Bernstein
     sum taken over |F| (``Fabs`` holds |F| coefficient-wise).
     """
-    gmax, u = quartic_max(bz.bivariate_at_t(F, t))
-    m = Fabs.shape[0] - 1
-    binom = bz.binomial_row(m)
-    scale = 0.0
-    for i in range(m + 1):
-        scale += binom[i] * u ** i * (1.0 - u) ** (m - i) * bz.evaluate(Fabs[i], t)
+    gmax, u = state(F, t)
+    v = 1.0 - u
+    scale = (v * v * v * v * bz.evaluate_row(Fabs, 0, t) + 4.0 * u * v * v * v * bz.evaluate_row(Fabs, 1, t)
+             + 6.0 * u * u * v * v * bz.evaluate_row(Fabs, 2, t) + 4.0 * u * u * u * v * bz.evaluate_row(Fabs, 3, t)
+             + u * u * u * u * bz.evaluate_row(Fabs, 4, t))
     return status_from_max(gmax, noise * scale), gmax, u
 
 
@@ -192,12 +192,12 @@ def shoot_first_contact(F, Fabs, noise, t_start, t_max):
     """
     t = t_start
     _, _, u = status_at(F, Fabs, noise, t)
+    h = np.empty(F.shape[1])
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
             break
-        h = bz.bivariate_at_u(F, u)
-        if t > 0.0 or t_max < 1.0:
-            h = bz.restrict(h, t, t_max)
+        bz.bivariate_at_u_into(F, u, h)
+        bz.restrict_into(h, t, t_max)
         r = -1.0 if h.min() > 0.0 else bz.first_root(h, SHOOT_TOL)
         if r < 0.0:
             break
@@ -349,9 +349,9 @@ def _march_exit(F, Fabs, noise, t_start, t_end):
             m2 = _curvature_bound(F, w0, w1)
         margin = 0.0
         for i in range(rows):
-            g[i] = bz.evaluate(F[i], a)
-            d[i] = bz.evaluate(Ft[i], a)
-            margin = max(margin, bz.evaluate(Fabs[i], a))
+            g[i] = bz.evaluate_row(F, i, a)
+            d[i] = bz.evaluate_row(Ft, i, a)
+            margin = max(margin, bz.evaluate_row(Fabs, i, a))
         margin *= noise
         h = min(2.0 * h, w1 - a)
         while h >= EXIT_BOX_TOL:

@@ -1,13 +1,13 @@
 """Guarded stepping: roll a MuJoCo step back to the exact first contact so fast bodies cannot tunnel."""
 from dataclasses import dataclass
 
-import dm_env
 import mujoco
 import numpy as np
 
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.monitor import CCDMonitor, StepCheck  # noqa: F401  (StepCheck re-exported)
 from mjccd.mujoco.motions import capture
+from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -250,7 +250,7 @@ class GuardedStepper:
         return self._hit(d, start)
 
 
-class GuardedWrapper(dm_env.Environment):
+class GuardedWrapper(DelegatingEnvironment):
     """A dm-control environment whose physics substeps are guarded (see :class:`GuardedStepper`).
 
     Args:
@@ -261,25 +261,16 @@ class GuardedWrapper(dm_env.Environment):
     ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.
     """
 
-    def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=8, overshoot=1e-3,
+    def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=32, overshoot=1e-3,
                  contact_step=0.05, on_clamp=None, per="body"):
-        physics = getattr(env, "physics", None)
-        if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
-            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
-        self._env = env
+        super().__init__(env)
+        physics = env.physics
         model = physics.model.ptr
-        if ellipsoids is None:
-            from mjccd.fit import fit_model
-
-            ellipsoids = fit_model(model, per=per)
+        ellipsoids = fitted_or_checked(model, ellipsoids, per)
         self.stepper = GuardedStepper(model, physics.data.ptr, ellipsoids, pairs=pairs, motion=motion,
                                       max_rechecks=max_rechecks, overshoot=overshoot,
                                       contact_step=contact_step, on_clamp=on_clamp)
         self.last_reports = []
-
-    @property
-    def physics(self):
-        return self._env.physics
 
     def reset(self):
         self.last_reports = []
@@ -309,22 +300,3 @@ class GuardedWrapper(dm_env.Environment):
         self.last_reports = reports
         return timestep
 
-    def observation_spec(self):
-        return self._env.observation_spec()
-
-    def action_spec(self):
-        return self._env.action_spec()
-
-    def reward_spec(self):
-        return self._env.reward_spec()
-
-    def discount_spec(self):
-        return self._env.discount_spec()
-
-    def close(self):
-        return self._env.close()
-
-    def __getattr__(self, name):
-        if name.startswith("__") or name == "_env":
-            raise AttributeError(name)
-        return getattr(self._env, name)

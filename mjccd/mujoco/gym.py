@@ -2,7 +2,7 @@
 import gymnasium
 
 from mjccd.mujoco.monitor import CCDMonitor
-from mjccd.mujoco.wrappers import SubstepRecorder, _fit, _model_and_data
+from mjccd.mujoco.wrappers import SubstepRecorder, fitted_or_checked, _model_and_data
 
 
 class CCDGymWrapper(gymnasium.Wrapper):
@@ -22,7 +22,7 @@ class CCDGymWrapper(gymnasium.Wrapper):
         base, model, data = _model_and_data(env)
         if not callable(getattr(base, "do_simulation", None)):
             raise ValueError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
-        self.ellipsoids = _fit(model, ellipsoids, per)
+        self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
         self.monitor = CCDMonitor(model, data, self.ellipsoids, pairs=pairs, motion=motion,
                                   on_contact=on_contact, all_pairs=all_pairs,
                                   report_overlapping=report_overlapping)

@@ -14,7 +14,8 @@ from mjccd.mujoco.motions import capture
 OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
 
 
-def _fit(model, ellipsoids, per):
+def fitted_or_checked(model, ellipsoids, per):
+    """``ellipsoids`` when given (checked), else the bounding ellipsoids fitted to ``model``."""
     if ellipsoids is None:
         from mjccd.fit import fit_model
 
@@ -22,6 +23,46 @@ def _fit(model, ellipsoids, per):
     if not isinstance(ellipsoids, EllipsoidSet):
         raise ValueError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
     return ellipsoids
+
+
+class DelegatingEnvironment(dm_env.Environment):
+    """Base of mjccd's dm-control wrappers: holds a dm-control environment and passes everything on."""
+
+    def __init__(self, env):
+        physics = getattr(env, "physics", None)
+        if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
+            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
+        self._env = env
+
+    @property
+    def physics(self):
+        return self._env.physics
+
+    def reset(self):
+        return self._env.reset()
+
+    def step(self, action):
+        return self._env.step(action)
+
+    def observation_spec(self):
+        return self._env.observation_spec()
+
+    def action_spec(self):
+        return self._env.action_spec()
+
+    def reward_spec(self):
+        return self._env.reward_spec()
+
+    def discount_spec(self):
+        return self._env.discount_spec()
+
+    def close(self):
+        return self._env.close()
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name == "_env":
+            raise AttributeError(name)
+        return getattr(self._env, name)
 
 
 class SubstepRecorder:
@@ -72,7 +113,7 @@ def observation_specs():
     ])
 
 
-class CCDWrapper(dm_env.Environment):
+class CCDWrapper(DelegatingEnvironment):
     """Wraps a dm-control environment and adds the first contact of each control step.
 
     Every physics substep of a control step is checked.  The observation gains
@@ -91,23 +132,17 @@ class CCDWrapper(dm_env.Environment):
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
                  all_pairs=False, report_overlapping=True, per="body"):
-        physics = getattr(env, "physics", None)
-        if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
-            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
+        super().__init__(env)
         if not isinstance(env.observation_spec(), Mapping):
             raise ValueError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
-        self._env = env
+        physics = env.physics
         model = physics.model.ptr
-        self.ellipsoids = _fit(model, ellipsoids, per)
+        self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
         self.monitor = CCDMonitor(model, physics.data.ptr, self.ellipsoids, pairs=pairs, motion=motion,
                                   on_contact=on_contact, all_pairs=all_pairs,
                                   report_overlapping=report_overlapping)
         self._recorder = SubstepRecorder(self.monitor)
         self.last_contacts = []
-
-    @property
-    def physics(self):
-        return self._env.physics
 
     def _with_ccd(self, timestep, recorded):
         obs = collections.OrderedDict(timestep.observation)
@@ -146,23 +181,6 @@ class CCDWrapper(dm_env.Environment):
         spec = collections.OrderedDict(self._env.observation_spec())
         spec.update(observation_specs())
         return spec
-
-    def action_spec(self):
-        return self._env.action_spec()
-
-    def reward_spec(self):
-        return self._env.reward_spec()
-
-    def discount_spec(self):
-        return self._env.discount_spec()
-
-    def close(self):
-        return self._env.close()
-
-    def __getattr__(self, name):
-        if name.startswith("__") or name == "_env":
-            raise AttributeError(name)
-        return getattr(self._env, name)
 
 
 def _model_and_data(env):

@@ -373,31 +373,27 @@ def bivariate_derivative_t(F):
 
 
 @_jit
-def to_scaled(F):
-    """Bivariate coefficients times C(m, i) C(n, j): products become convolutions."""
-    m = F.shape[0] - 1
-    n = F.shape[1] - 1
+def _binomial_grid(m, n):
+    """C(m, i) C(n, j) for the coefficients of a bivariate polynomial of degree (m, n)."""
     bm = binomial_row(m)
     bn = binomial_row(n)
-    out = np.empty_like(F)
+    out = np.empty((m + 1, n + 1))
     for i in range(m + 1):
         for j in range(n + 1):
-            out[i, j] = F[i, j] * bm[i] * bn[j]
+            out[i, j] = bm[i] * bn[j]
     return out
+
+
+@_jit
+def to_scaled(F):
+    """Bivariate coefficients times C(m, i) C(n, j): products become convolutions."""
+    return F * _binomial_grid(F.shape[0] - 1, F.shape[1] - 1)
 
 
 @_jit
 def from_scaled(S):
     """Inverse of :func:`to_scaled`."""
-    m = S.shape[0] - 1
-    n = S.shape[1] - 1
-    bm = binomial_row(m)
-    bn = binomial_row(n)
-    out = np.empty_like(S)
-    for i in range(m + 1):
-        for j in range(n + 1):
-            out[i, j] = S[i, j] / (bm[i] * bn[j])
-    return out
+    return S / _binomial_grid(S.shape[0] - 1, S.shape[1] - 1)
 
 
 @_jit

@@ -14,6 +14,8 @@ Degrees in t of (P, U, s): static (0, 0, 0); rigid (4, 5, 6); affine
 (1, 2, 3); linear_affine (4, 5, 6); a chain of k rotating joints
 (4k, 4k, 4k) at most.
 """
+import abc
+
 import numba
 import numpy as np
 
@@ -293,15 +295,14 @@ def _pose_from_json(d, field):
 # ---------------------------------------------------------------- motion models
 
 
-class Motion:
+class Motion(abc.ABC):
     """Base class: a motion of an ellipsoid's frame over normalised time t in [0, 1]."""
 
     kind = "motion"
 
+    @abc.abstractmethod
     def quadric(self, radii):
         """(P, U, s) Bernstein arrays of the ellipsoid with these radii under this motion."""
-        raise NotImplementedError
-
 
 
 class _WMotion(Motion):
@@ -478,15 +479,20 @@ class Fixed:
         return _pose_w(self.position, self.quaternion)
 
 
+def _unit_axis(axis):
+    """The validated joint axis, normalised."""
+    axis = _validate.vector(axis, 3, "axis")
+    n = float(np.linalg.norm(axis))
+    if n < 1e-12:
+        raise ValueError("axis: zero vector")
+    return axis / n
+
+
 class Hinge:
     """Rotation about ``axis`` (through the frame origin) with tan(theta/2) linear in t."""
 
     def __init__(self, axis, angle0, angle1):
-        axis = _validate.vector(axis, 3, "axis")
-        n = float(np.linalg.norm(axis))
-        if n < 1e-12:
-            raise ValueError("axis: zero vector")
-        self.axis = axis / n
+        self.axis = _unit_axis(axis)
         for name, a in (("angle[0]", angle0), ("angle[1]", angle1)):
             if not np.isfinite(a) or abs(a) >= np.pi:
                 raise ValueError(f"{name}: hinge angle must be finite with |angle| < pi, got {a}")
@@ -504,11 +510,7 @@ class Slide:
     """Translation ``s(t) * axis`` with s linear in t."""
 
     def __init__(self, axis, displacement0, displacement1):
-        axis = _validate.vector(axis, 3, "axis")
-        n = float(np.linalg.norm(axis))
-        if n < 1e-12:
-            raise ValueError("axis: zero vector")
-        self.axis = axis / n
+        self.axis = _unit_axis(axis)
         self.displacement0 = _validate.scalar(displacement0, "displacement[0]")
         self.displacement1 = _validate.scalar(displacement1, "displacement[1]")
 

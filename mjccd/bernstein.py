@@ -13,6 +13,8 @@ by their binomials), where multiplication is a plain convolution.  All kernels
 take and return plain float64 arrays and are compiled lazily with
 ``cache=True``.
 """
+import math
+
 import numba
 import numpy as np
 
@@ -21,11 +23,32 @@ _jit = numba.njit(cache=True, nogil=True)
 
 # ---------------------------------------------------------------- binomials
 
+TABLED_DEGREE = 48
+# C(n, k) rounded once, for the degrees of every hot loop (rigid, affine and rational pairs); a
+# compile-time constant, so evaluation needs no division chain
+_BINOMIALS = np.array([[float(math.comb(n, k)) for k in range(TABLED_DEGREE + 1)]
+                       for n in range(TABLED_DEGREE + 1)])
+
+
+@_jit
+def binomial(n, k):
+    """C(n, k) as a float (from the table up to :data:`TABLED_DEGREE`)."""
+    if n <= TABLED_DEGREE:
+        return _BINOMIALS[n, k]
+    k = min(k, n - k)
+    out = 1.0
+    for j in range(1, k + 1):
+        out = out * (n - k + j) / j
+    return out
+
 
 @_jit
 def binomial_row(n):
     """The binomial coefficients C(n, 0..n) as floats."""
     row = np.empty(n + 1)
+    if n <= TABLED_DEGREE:
+        row[:] = _BINOMIALS[n, :n + 1]
+        return row
     row[0] = 1.0
     for i in range(1, n + 1):
         row[i] = row[i - 1] * (n - i + 1) / i
@@ -41,21 +64,19 @@ def evaluate_row(F, i, t):
     n = F.shape[1] - 1
     if n == 0:
         return F[i, 0]
-    if t <= 0.5:
-        s = t / (1.0 - t)
-        acc = F[i, n]
+    flip = t > 0.5
+    s = (1.0 - t) / t if flip else t / (1.0 - t)
+    # Horner in s over the coefficients, from the end far from t
+    acc = F[i, 0] if flip else F[i, n]
+    if n <= TABLED_DEGREE:
+        for k in range(n - 1, -1, -1):
+            acc = acc * s + _BINOMIALS[n, k] * (F[i, n - k] if flip else F[i, k])
+    else:
         binom = 1.0
         for k in range(n - 1, -1, -1):
             binom = binom * (k + 1) / (n - k)
-            acc = acc * s + binom * F[i, k]
-        return acc * (1.0 - t) ** n
-    s = (1.0 - t) / t
-    acc = F[i, 0]
-    binom = 1.0
-    for k in range(1, n + 1):
-        binom = binom * (n - k + 1) / k
-        acc = acc * s + binom * F[i, k]
-    return acc * t ** n
+            acc = acc * s + binom * (F[i, n - k] if flip else F[i, k])
+    return acc * (t if flip else 1.0 - t) ** n
 
 
 @_jit
@@ -245,19 +266,88 @@ def _keep_right(c, t):
 
 
 @_jit
+def value_and_slope(c, t):
+    """p(t) and p'(t) of the Bernstein polynomial ``c`` in O(n) (Horner in t/(1-t), as :func:`evaluate_row`)."""
+    n = c.shape[0] - 1
+    if n == 0:
+        return c[0], 0.0
+    flip = t > 0.5
+    x = (1.0 - t) / t if flip else t / (1.0 - t)
+    # coefficient k of the polynomial and of its derivative, read from the far end when flipped
+    acc = c[0] if flip else c[n]
+    dacc = (c[0] - c[1]) if flip else (c[n] - c[n - 1])
+    for k in range(n - 1, -1, -1):
+        acc = acc * x + binomial(n, k) * (c[n - k] if flip else c[k])
+    for k in range(n - 2, -1, -1):
+        diff = (c[n - k - 1] - c[n - k]) if flip else (c[k + 1] - c[k])
+        dacc = dacc * x + binomial(n - 1, k) * diff
+    far = t if flip else 1.0 - t
+    slope = n * dacc * far ** (n - 1)
+    return acc * far ** n, -slope if flip else slope
+
+
+@_jit
+def _newton_first_root(c, tol):
+    """Fast path of :func:`first_root`: a Newton root from 0, accepted only with a certificate.
+
+    The certificate: the coefficients of ``c`` restricted to [0, lo] all have
+    the sign of c[0] (no root before lo), and c changes sign within ``tol``
+    after lo.  Returns lo, or -1 when Newton or the certificate fails (a root
+    that is not the first, a double root, rounding), for clipping to decide.
+    """
+    n = c.shape[0] - 1
+    x = 0.0
+    converged = False
+    for _ in range(50):
+        v, d = value_and_slope(c, x)
+        if v == 0.0:
+            converged = True
+            break
+        if not d != 0.0:
+            return -1.0
+        step = -v / d
+        x += step
+        if not 0.0 <= x <= 1.0:
+            return -1.0
+        if abs(step) <= 0.25 * tol:
+            converged = True
+            break
+    if not converged:
+        return -1.0
+    lo = max(0.0, x - 0.5 * tol)
+    hi = min(1.0, lo + tol)
+    positive = c[0] > 0.0
+    v_hi, _ = value_and_slope(c, hi)
+    if v_hi != 0.0 and (v_hi > 0.0) == positive:
+        return -1.0
+    left = c.copy()
+    _keep_left(left, lo)
+    for i in range(n + 1):
+        if left[i] == 0.0 or (left[i] > 0.0) != positive:
+            return -1.0
+    return lo
+
+
+@_jit
 def first_root(c, tol):
     """Smallest root of the Bernstein polynomial ``c`` in [0, 1], or -1.
 
-    Bézier clipping: the part of the interval where the convex hull of the
-    control polygon stays off zero is discarded; when clipping stalls the
-    interval is halved and the left half searched first.  The returned value
-    is the lower end of the first interval of width <= ``tol`` that could not
-    be excluded, so the polynomial has no root before it (up to rounding).
-    All work happens in place in a few buffers allocated once per call.
+    A certified Newton root is tried first (:func:`_newton_first_root`).
+    Otherwise Bézier clipping: the part of the interval where the convex hull
+    of the control polygon stays off zero is discarded; when clipping stalls
+    the interval is halved and the left half searched first.  The returned
+    value is the lower end of the first interval of width <= ``tol`` that
+    could not be excluded, so the polynomial has no root before it (up to
+    rounding).  All work happens in place in a few buffers allocated once per call.
     """
     n = c.shape[0] - 1
     if n == 0:
         return 0.0 if c[0] == 0.0 else -1.0
+    if c[0] == 0.0:
+        return 0.0
+    fast = _newton_first_root(c, tol)
+    if fast >= 0.0:
+        return fast
     # every pending right half is at most half as wide as the one before it
     max_depth = int(np.ceil(-np.log2(max(tol, 1e-300)))) + 2
     stack_c = np.empty((max_depth, n + 1))
@@ -385,6 +475,35 @@ def _binomial_grid(m, n):
 
 
 @_jit
+def from_scaled_into(S):
+    """In place: a bivariate polynomial in scaled form back to plain Bernstein coefficients (returns ``S``)."""
+    m = S.shape[0] - 1
+    n = S.shape[1] - 1
+    for i in range(m + 1):
+        bi = binomial(m, i)
+        for j in range(n + 1):
+            S[i, j] /= bi * binomial(n, j)
+    return S
+
+
+@_jit
+def evaluate_scaled(c, t):
+    """Value at ``t`` of a univariate polynomial given by scaled Bernstein coefficients."""
+    n = c.shape[0] - 1
+    if t <= 0.5:
+        s = t / (1.0 - t)
+        acc = c[n]
+        for k in range(n - 1, -1, -1):
+            acc = acc * s + c[k]
+        return acc * (1.0 - t) ** n
+    s = (1.0 - t) / t
+    acc = c[0]
+    for k in range(1, n + 1):
+        acc = acc * s + c[k]
+    return acc * t ** n
+
+
+@_jit
 def to_scaled(F):
     """Bivariate coefficients times C(m, i) C(n, j): products become convolutions."""
     return F * _binomial_grid(F.shape[0] - 1, F.shape[1] - 1)
@@ -393,7 +512,7 @@ def to_scaled(F):
 @_jit
 def from_scaled(S):
     """Inverse of :func:`to_scaled`."""
-    return S / _binomial_grid(S.shape[0] - 1, S.shape[1] - 1)
+    return from_scaled_into(S.copy())
 
 
 @_jit

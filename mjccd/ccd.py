@@ -32,8 +32,8 @@ from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz
-from mjccd.motion import Motion, quadric_at, quadric_rigid
-from mjccd.quadric import (STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
+from mjccd.motion import Motion, quadric_affine, quadric_at, rigid_scaled_into
+from mjccd.quadric import (STATUS_NAMES, Ellipsoid, quartic_max, quartic_max5, status_from_max,
                            touching_point)
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -53,19 +53,6 @@ NOISE = 256 * 2.220446049250313e-16
 
 
 @_jit
-def _pencil_entry(a, b, n):
-    """Scaled bivariate form of (1 - u) a(t) + u b(t), degree (1, n)."""
-    out = np.empty((2, n + 1))
-    binom = bz.binomial_row(n)
-    ea = a if a.shape[0] == n + 1 else bz.elevate(a.copy(), n + 1 - a.shape[0])
-    eb = b if b.shape[0] == n + 1 else bz.elevate(b.copy(), n + 1 - b.shape[0])
-    for j in range(n + 1):
-        out[0, j] = ea[j] * binom[j]
-        out[1, j] = eb[j] * binom[j]
-    return out
-
-
-@_jit
 def _acc(out, x, y, sign):
     """out += sign * x * y for bivariate polynomials in scaled Bernstein form."""
     mx, nx = x.shape
@@ -79,65 +66,146 @@ def _acc(out, x, y, sign):
 
 
 @_jit
-def _cofactor(x1, y1, x2, y2):
-    """x1 y1 - x2 y2 (all of the same degree), scaled form."""
-    out = np.zeros((x1.shape[0] + y1.shape[0] - 1, x1.shape[1] + y1.shape[1] - 1))
-    _acc(out, x1, y1, 1.0)
-    _acc(out, x2, y2, -1.0)
-    return out
+def empty_pencil(p, q, r):
+    """Scaled pencil arrays for quadrics of degrees (p, q, r) in (P, U, s): side 0 is A, side 1 is B.
+
+    ``P[i, j, side]``, ``U[i, side]`` and ``s[side]`` hold scaled Bernstein
+    coefficients (times their binomials), so that each entry ``P[i, j]`` read as
+    a (2, p + 1) array is (1 - u) A_ij(t) + u B_ij(t) in scaled bivariate form.
+    """
+    return np.empty((3, 3, 2, p + 1)), np.empty((3, 2, q + 1)), np.empty((2, r + 1))
+
+
+@_jit
+def pencil_side_into(P, U, s, Pp, Up, sp, side):
+    """A body's (P, U, s) in Bernstein form, elevated and scaled, into one side of the pencil."""
+    p = Pp.shape[3] - 1
+    q = Up.shape[2] - 1
+    r = sp.shape[1] - 1
+    bp = bz.binomial_row(p)
+    for i in range(3):
+        for j in range(3):
+            e = bz.elevate(P[i, j].copy(), p + 1 - P.shape[2])
+            for a in range(p + 1):
+                Pp[i, j, side, a] = e[a] * bp[a]
+    bq = bz.binomial_row(q)
+    for i in range(3):
+        e = bz.elevate(U[i].copy(), q + 1 - U.shape[1])
+        for a in range(q + 1):
+            Up[i, side, a] = e[a] * bq[a]
+    br = bz.binomial_row(r)
+    e = bz.elevate(s.copy(), r + 1 - s.shape[0])
+    for a in range(r + 1):
+        sp[side, a] = e[a] * br[a]
+
+
+@_jit
+def balance_side(Pp, Up, sp, side):
+    """Divide one side of the pencil by |det A(0)|^(1/4): both ends of comparable size.
+
+    A(0) is read off the first coefficients (scaled and plain agree there).
+    """
+    a00, a01, a02 = Pp[0, 0, side, 0], Pp[0, 1, side, 0], Pp[0, 2, side, 0]
+    a11, a12, a22 = Pp[1, 1, side, 0], Pp[1, 2, side, 0], Pp[2, 2, side, 0]
+    u0, u1, u2, s0 = Up[0, side, 0], Up[1, side, 0], Up[2, side, 0], sp[side, 0]
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    det = (s0 * (a00 * c00 + a01 * c01 + a02 * c02)
+           - (u0 * (c00 * u0 + c01 * u1 + c02 * u2) + u1 * (c01 * u0 + c11 * u1 + c12 * u2)
+              + u2 * (c02 * u0 + c12 * u1 + c22 * u2)))
+    scale = abs(det) ** 0.25
+    if not np.isfinite(scale) or scale == 0.0:
+        scale = 0.0
+        for i in range(3):
+            for j in range(3):
+                for a in range(Pp.shape[3]):
+                    scale = max(scale, abs(Pp[i, j, side, a]))
+    inv = 1.0 / scale
+    for i in range(3):
+        for j in range(3):
+            for a in range(Pp.shape[3]):
+                Pp[i, j, side, a] *= inv
+        for a in range(Up.shape[2]):
+            Up[i, side, a] *= inv
+    for a in range(sp.shape[1]):
+        sp[side, a] *= inv
+
+
+@_jit
+def pencil_quadric_at(Pp, Up, sp, side, t):
+    """The 4x4 quadric matrix of one side of the pencil at time t."""
+    A = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            A[i, j] = bz.evaluate_scaled(Pp[i, j, side], t)
+        A[i, 3] = A[3, i] = bz.evaluate_scaled(Up[i, side], t)
+    A[3, 3] = bz.evaluate_scaled(sp[side], t)
+    return A
+
+
+@_jit
+def F_from_pencil(Pp, Up, sp):
+    """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from the scaled pencil.
+
+    Uses ``det [[P, U], [U^T, s]] = s det P - U^T adj(P) U``, which keeps
+    every intermediate at its true degree; in the scaled basis every product
+    is a plain convolution.
+    """
+    p = Pp.shape[3] - 1
+    q = Up.shape[2] - 1
+    r = sp.shape[1] - 1
+    C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p); only i <= j is filled
+    _acc(C[0, 0], Pp[1, 1], Pp[2, 2], 1.0)
+    _acc(C[0, 0], Pp[1, 2], Pp[1, 2], -1.0)
+    _acc(C[1, 1], Pp[0, 0], Pp[2, 2], 1.0)
+    _acc(C[1, 1], Pp[0, 2], Pp[0, 2], -1.0)
+    _acc(C[2, 2], Pp[0, 0], Pp[1, 1], 1.0)
+    _acc(C[2, 2], Pp[0, 1], Pp[0, 1], -1.0)
+    _acc(C[0, 1], Pp[0, 2], Pp[1, 2], 1.0)
+    _acc(C[0, 1], Pp[0, 1], Pp[2, 2], -1.0)
+    _acc(C[0, 2], Pp[0, 1], Pp[1, 2], 1.0)
+    _acc(C[0, 2], Pp[0, 2], Pp[1, 1], -1.0)
+    _acc(C[1, 2], Pp[0, 1], Pp[0, 2], 1.0)
+    _acc(C[1, 2], Pp[0, 0], Pp[1, 2], -1.0)
+    detP = np.zeros((4, 3 * p + 1))
+    _acc(detP, Pp[0, 0], C[0, 0], 1.0)
+    _acc(detP, Pp[0, 1], C[0, 1], 1.0)
+    _acc(detP, Pp[0, 2], C[0, 2], 1.0)
+    n1 = 3 * p + r
+    n2 = 2 * p + 2 * q
+    n = max(n1, n2)
+    F = np.zeros((5, n1 + 1))
+    _acc(F, sp, detP, 1.0)
+    F2 = F if n1 == n2 else np.zeros((5, n2 + 1))
+    V = np.empty((4, 2 * p + q + 1))
+    for i in range(3):  # F2 -= U_i sum_j adj(P)_ij U_j
+        V[:, :] = 0.0
+        for j in range(3):
+            _acc(V, C[min(i, j), max(i, j)], Up[j], 1.0)
+        _acc(F2, Up[i], V, -1.0)
+    F = bz.from_scaled_into(F)
+    if n1 == n2:
+        return F
+    F2 = bz.from_scaled_into(F2)
+    if n1 < n:
+        F = bz.bivariate_elevate_t(F, n - n1)
+    else:
+        F2 = bz.bivariate_elevate_t(F2, n - n2)
+    return F + F2
 
 
 @_jit
 def build_F(PA, UA, sA, PB, UB, sB):
-    """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)).
-
-    Uses ``det [[P, U], [U^T, s]] = s det P - U^T adj(P) U`` on the pencil,
-    which keeps every intermediate at its true degree.  Products run in the
-    scaled Bernstein basis, where they are plain convolutions.
-    """
-    p = max(PA.shape[2], PB.shape[2]) - 1
-    q = max(UA.shape[1], UB.shape[1]) - 1
-    r = max(sA.shape[0], sB.shape[0]) - 1
-    P00 = _pencil_entry(PA[0, 0], PB[0, 0], p)
-    P01 = _pencil_entry(PA[0, 1], PB[0, 1], p)
-    P02 = _pencil_entry(PA[0, 2], PB[0, 2], p)
-    P11 = _pencil_entry(PA[1, 1], PB[1, 1], p)
-    P12 = _pencil_entry(PA[1, 2], PB[1, 2], p)
-    P22 = _pencil_entry(PA[2, 2], PB[2, 2], p)
-    U0 = _pencil_entry(UA[0], UB[0], q)
-    U1 = _pencil_entry(UA[1], UB[1], q)
-    U2 = _pencil_entry(UA[2], UB[2], q)
-    s = _pencil_entry(sA, sB, r)
-    C00 = _cofactor(P11, P22, P12, P12)
-    C11 = _cofactor(P00, P22, P02, P02)
-    C22 = _cofactor(P00, P11, P01, P01)
-    C01 = _cofactor(P02, P12, P01, P22)
-    C02 = _cofactor(P01, P12, P02, P11)
-    C12 = _cofactor(P01, P02, P00, P12)
-    detP = np.zeros((4, 3 * p + 1))
-    _acc(detP, P00, C00, 1.0)
-    _acc(detP, P01, C01, 1.0)
-    _acc(detP, P02, C02, 1.0)
-    n1 = 3 * p + r
-    n2 = 2 * p + 2 * q
-    F1 = np.zeros((5, n1 + 1))
-    _acc(F1, s, detP, 1.0)
-    F2 = np.zeros((5, n2 + 1))
-    V = np.zeros((4, 2 * p + q + 1))
-    for Ui, Ci0, Ci1, Ci2 in ((U0, C00, C01, C02), (U1, C01, C11, C12), (U2, C02, C12, C22)):
-        V[:, :] = 0.0
-        _acc(V, Ci0, U0, 1.0)
-        _acc(V, Ci1, U1, 1.0)
-        _acc(V, Ci2, U2, 1.0)
-        _acc(F2, Ui, V, 1.0)
-    F1 = bz.from_scaled(F1)
-    F2 = bz.from_scaled(F2)
-    n = max(n1, n2)
-    if n1 < n:
-        F1 = bz.bivariate_elevate_t(F1, n - n1)
-    if n2 < n:
-        F2 = bz.bivariate_elevate_t(F2, n - n2)
-    return F1 - F2
+    """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from two (P, U, s)."""
+    Pp, Up, sp = empty_pencil(max(PA.shape[2], PB.shape[2]) - 1, max(UA.shape[1], UB.shape[1]) - 1,
+                              max(sA.shape[0], sB.shape[0]) - 1)
+    pencil_side_into(PA, UA, sA, Pp, Up, sp, 0)
+    pencil_side_into(PB, UB, sB, Pp, Up, sp, 1)
+    return F_from_pencil(Pp, Up, sp)
 
 
 # ---------------------------------------------------------------- state
@@ -557,12 +625,13 @@ def _centre(P, U, s, t):
 
 @_jit
 def _reframe(P, U, s, origin, length):
-    """Quadric polynomials in the frame x_old = length * x_new + origin, balanced.
+    """Quadric polynomials in the frame x_old = length * x_new + origin.
 
     A rigid change of frame, a uniform scaling and a positive factor on each
-    quadric change no answer, but they balance the pencil: both matrices get
-    entries of order one and |det A(0)| = 1, which keeps the rounding of F
-    relative to its values rather than to a far-away origin or the units.
+    quadric (:func:`balance_side`) change no answer, but they balance the
+    pencil: both matrices get entries of order one and |det A(0)| = 1, which
+    keeps the rounding of F relative to its values rather than to a far-away
+    origin or the units.
     """
     p = P.shape[2] - 1
     q = max(p, U.shape[1] - 1)
@@ -578,54 +647,73 @@ def _reframe(P, U, s, origin, length):
     for i in range(3):
         quad += origin[i] * (Un[i] / length + bz.elevate(U[i].copy(), q - U.shape[1] + 1))
     sn = bz.elevate(s.copy(), r - s.shape[0] + 1) + bz.elevate(quad, r - q)
-    return _balanced(Pn, Un, sn)
-
-
-@_jit
-def _balanced(P, U, s):
-    """The quadric divided by |det A(0)|^(1/4): both ends of the pencil of comparable size."""
-    scale = abs(det4(quadric_at(P, U, s, 0.0))) ** 0.25
-    if not np.isfinite(scale) or scale == 0.0:
-        scale = max(np.abs(P).max(), np.abs(U).max(), np.abs(s).max())
-    return P / scale, U / scale, s / scale
+    return Pn, Un, sn
 
 
 @_jit
 def prepare_pair(PA, UA, sA, PB, UB, sB, length):
-    """Balanced quadrics of both bodies, their common frame, and F with |F|."""
+    """F with |F|, the common frame's origin, and the balanced pencil of both bodies."""
     origin = 0.25 * (_centre(PA, UA, sA, 0.0) + _centre(PA, UA, sA, 1.0)
                      + _centre(PB, UB, sB, 0.0) + _centre(PB, UB, sB, 1.0))
-    PA2, UA2, sA2 = _reframe(PA, UA, sA, origin, length)
-    PB2, UB2, sB2 = _reframe(PB, UB, sB, origin, length)
-    F = build_F(PA2, UA2, sA2, PB2, UB2, sB2)
-    return F, np.abs(F), origin, (PA2, UA2, sA2), (PB2, UB2, sB2)
+    p = max(PA.shape[2], PB.shape[2]) - 1
+    q = max(p, UA.shape[1] - 1, UB.shape[1] - 1)
+    Pp, Up, sp = empty_pencil(p, q, max(q, sA.shape[0] - 1, sB.shape[0] - 1))
+    pencil_side_into(*_reframe(PA, UA, sA, origin, length), Pp, Up, sp, 0)
+    pencil_side_into(*_reframe(PB, UB, sB, origin, length), Pp, Up, sp, 1)
+    balance_side(Pp, Up, sp, 0)
+    balance_side(Pp, Up, sp, 1)
+    F = F_from_pencil(Pp, Up, sp)
+    return F, np.abs(F), origin, (Pp, Up, sp)
+
+
+@_jit
+def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+    """Exact CCD of two ellipsoids moving between two poses: (status at start, intervals (k, 2), point, normal).
+
+    ``affine`` picks the motion model between the poses (rigid: centre and
+    quaternion lerp; affine: centre and shape matrix lerp).  Quaternions must
+    be unit and ``q1`` already on the side of ``q0``.  Both quadrics are taken
+    in a common balanced frame (origin at the mean centre, unit = the largest
+    semi-axis).  point/normal are zero when there is no external touch at t > 0.
+    """
+    length = max(ra.max(), rb.max())
+    origin = np.empty(3)
+    for m in range(3):
+        origin[m] = 0.25 * (pa0[m] + pa1[m] + pb0[m] + pb1[m])
+    if affine:
+        Pp, Up, sp = empty_pencil(1, 2, 3)
+        pencil_side_into(*quadric_affine(ra / length, (pa0 - origin) / length, qa0, (pa1 - origin) / length, qa1),
+                         Pp, Up, sp, 0)
+        pencil_side_into(*quadric_affine(rb / length, (pb0 - origin) / length, qb0, (pb1 - origin) / length, qb1),
+                         Pp, Up, sp, 1)
+    else:
+        Pp, Up, sp = empty_pencil(4, 5, 6)
+        rigid_scaled_into(ra, pa0, qa0, pa1, qa1, origin, length, Pp, Up, sp, 0)
+        rigid_scaled_into(rb, pb0, qb0, pb1, qb1, origin, length, Pp, Up, sp, 1)
+    balance_side(Pp, Up, sp, 0)
+    balance_side(Pp, Up, sp, 1)
+    F = F_from_pencil(Pp, Up, sp)
+    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
+    point = np.zeros(3)
+    normal = np.zeros(3)
+    if status0 == 1 and intervals.shape[0] > 0:
+        t = intervals[0, 0]
+        p, normal = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
+        for m in range(3):
+            point[m] = origin[m] + length * p[m]
+    return status0, intervals, point, normal
 
 
 @_jit
 def rigid_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1, t_max):
-    """Fused kernel for two rigid motions: returns (status at start, time or -1, point, normal).
-
-    Quaternions must be unit and ``q1`` already on the side of ``q0``.  This is
-    the whole pipeline of :func:`first_contact` in one call, for batched use.
-    """
-    length = max(radii_a.max(), radii_b.max())
-    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
-    A2 = _balanced(*quadric_rigid(radii_a / length, (pa0 - origin) / length, qa0,
-                                  (pa1 - origin) / length, qa1))
-    B2 = _balanced(*quadric_rigid(radii_b / length, (pb0 - origin) / length, qb0,
-                                  (pb1 - origin) / length, qb1))
-    F = build_F(A2[0], A2[1], A2[2], B2[0], B2[1], B2[2])
-    Fabs = np.abs(F)
-    status0, intervals, u = solve_intervals(F, Fabs, NOISE, t_max, True)
-    point = np.zeros(3)
-    normal = np.zeros(3)
+    """Fused kernel for two rigid motions: (status at start, time or -1, point, normal); see :func:`exact_pair`."""
+    status0, intervals, point, normal = exact_pair(False, radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1,
+                                                   qb1, t_max, True)
     if status0 != 1:
         return status0, 0.0, point, normal
     if intervals.shape[0] == 0:
         return status0, -1.0, point, normal
-    t = intervals[0, 0]
-    p, n = touching_point(quadric_at(A2[0], A2[1], A2[2], t), quadric_at(B2[0], B2[1], B2[2], t), u)
-    return status0, t, origin + length * p, n
+    return status0, intervals[0, 0], point, normal
 
 
 class _Pair:
@@ -639,15 +727,15 @@ class _Pair:
             if not isinstance(m, Motion):
                 raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
         self.length = float(max(a.radii.max(), b.radii.max()))
-        self.F, self.Fabs, self.origin, self.qa, self.qb = prepare_pair(
+        self.F, self.Fabs, self.origin, self.pencil = prepare_pair(
             *motion_a.quadric(a.radii), *motion_b.quadric(b.radii), self.length)
 
     def solve(self, t_max, first_only):
         return solve_intervals(self.F, self.Fabs, NOISE, t_max, first_only)
 
     def touch(self, t, u):
-        A = quadric_at(*self.qa, t)
-        B = quadric_at(*self.qb, t)
+        A = pencil_quadric_at(*self.pencil, 0, t)
+        B = pencil_quadric_at(*self.pencil, 1, t)
         point, normal = touching_point(A, B, u)
         return self.origin + self.length * point, normal
 

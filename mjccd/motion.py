@@ -135,15 +135,17 @@ def quadric_from_w(G, h, g, radii):
 
 
 @_jit
-def quadric_rigid(radii, p0, q0, p1, q1):
-    """(P, U, s) of the rigid motion (centre lerp, quaternion lerp), without intermediate W.
+def rigid_scaled_into(radii, p0, q0, p1, q1, origin, length, P, U, s, side):
+    """Scaled Bernstein (P, U, s) of a rigid motion, written into ``P[:, :, side]``, ``U[:, side]``, ``s[side]``.
 
-    ``|q|^4 A = [[R D R^T, -R D R^T p], [., p^T R D R^T p - |q|^4]]`` with
-    ``R = rot(q)`` the unnormalised rotation: P = R D R^T (degree 4),
-    U = -P p (degree 5), s = p^T P p - |q|^4 (degree 6).  Products of linear
-    and quadratic Bernstein polynomials are written out in scaled form.
+    The motion is taken in the frame x' = (x - origin) / length (a rigid change
+    of frame and a uniform scaling, which change no answer).  With
+    ``R = rot(q)`` the unnormalised rotation of the quaternion lerp,
+    ``|q|^4 A = [[R D R^T, -R D R^T p], [., p^T R D R^T p - |q|^4]]``:
+    P = R D R^T (degree 4), U = -P p (degree 5), s = p^T P p - |q|^4
+    (degree 6).  Scaled coefficients (times their binomials) make every
+    product a plain convolution; nothing is allocated but two small tables.
     """
-    d = 1.0 / (radii * radii)
     # quadratic products of quaternion components (scaled Bernstein, degree 2)
     qq = np.empty((4, 4, 3))
     for i in range(4):
@@ -152,57 +154,68 @@ def quadric_rigid(radii, p0, q0, p1, q1):
             qq[i, j, 1] = q0[i] * q1[j] + q1[i] * q0[j]
             qq[i, j, 2] = q1[i] * q1[j]
     R = np.empty((3, 3, 3))
-    R[0, 0] = qq[0, 0] + qq[1, 1] - qq[2, 2] - qq[3, 3]
-    R[0, 1] = 2.0 * (qq[1, 2] - qq[0, 3])
-    R[0, 2] = 2.0 * (qq[1, 3] + qq[0, 2])
-    R[1, 0] = 2.0 * (qq[1, 2] + qq[0, 3])
-    R[1, 1] = qq[0, 0] - qq[1, 1] + qq[2, 2] - qq[3, 3]
-    R[1, 2] = 2.0 * (qq[2, 3] - qq[0, 1])
-    R[2, 0] = 2.0 * (qq[1, 3] - qq[0, 2])
-    R[2, 1] = 2.0 * (qq[2, 3] + qq[0, 1])
-    R[2, 2] = qq[0, 0] - qq[1, 1] - qq[2, 2] + qq[3, 3]
-    g = qq[0, 0] + qq[1, 1] + qq[2, 2] + qq[3, 3]
-    P = np.zeros((3, 3, 5))  # scaled, degree 4
+    for a in range(3):
+        R[0, 0, a] = qq[0, 0, a] + qq[1, 1, a] - qq[2, 2, a] - qq[3, 3, a]
+        R[0, 1, a] = 2.0 * (qq[1, 2, a] - qq[0, 3, a])
+        R[0, 2, a] = 2.0 * (qq[1, 3, a] + qq[0, 2, a])
+        R[1, 0, a] = 2.0 * (qq[1, 2, a] + qq[0, 3, a])
+        R[1, 1, a] = qq[0, 0, a] - qq[1, 1, a] + qq[2, 2, a] - qq[3, 3, a]
+        R[1, 2, a] = 2.0 * (qq[2, 3, a] - qq[0, 1, a])
+        R[2, 0, a] = 2.0 * (qq[1, 3, a] - qq[0, 2, a])
+        R[2, 1, a] = 2.0 * (qq[2, 3, a] + qq[0, 1, a])
+        R[2, 2, a] = qq[0, 0, a] - qq[1, 1, a] - qq[2, 2, a] + qq[3, 3, a]
     for i in range(3):
         for j in range(i, 3):
+            for a in range(5):
+                P[i, j, side, a] = 0.0
             for k in range(3):
-                dk = d[k]
+                dk = (length / radii[k]) ** 2
                 for a in range(3):
                     ra = R[i, k, a] * dk
                     for b in range(3):
-                        P[i, j, a + b] += ra * R[j, k, b]
+                        P[i, j, side, a + b] += ra * R[j, k, b]
     for i in range(3):
         for j in range(i):
-            P[i, j] = P[j, i]
-    U = np.zeros((3, 6))  # scaled, degree 5: -P p
-    for i in range(3):
-        for j in range(3):
             for a in range(5):
-                U[i, a] -= P[i, j, a] * p0[j]
-                U[i, a + 1] -= P[i, j, a] * p1[j]
-    s = np.zeros(7)  # scaled, degree 6: -p . U - g^2
-    for i in range(3):
+                P[i, j, side, a] = P[j, i, side, a]
+    for i in range(3):  # U = -P p, p the centre lerp in the new frame
         for a in range(6):
-            s[a] -= U[i, a] * p0[i]
-            s[a + 1] -= U[i, a] * p1[i]
-    g2 = np.zeros(5)
+            U[i, side, a] = 0.0
+        for j in range(3):
+            c0 = (p0[j] - origin[j]) / length
+            c1 = (p1[j] - origin[j]) / length
+            for a in range(5):
+                U[i, side, a] -= P[i, j, side, a] * c0
+                U[i, side, a + 1] -= P[i, j, side, a] * c1
+    for a in range(7):
+        s[side, a] = 0.0
+    for i in range(3):  # s = -p . U - |q|^4
+        c0 = (p0[i] - origin[i]) / length
+        c1 = (p1[i] - origin[i]) / length
+        for a in range(6):
+            s[side, a] -= U[i, side, a] * c0
+            s[side, a + 1] -= U[i, side, a] * c1
     for a in range(3):
+        ga = qq[0, 0, a] + qq[1, 1, a] + qq[2, 2, a] + qq[3, 3, a]
         for b in range(3):
-            g2[a + b] += g[a] * g[b]
-    for a in range(5):  # elevate |q|^4 from degree 4 to 6: times (1 - t + t)^2, scaled [1, 2, 1]
-        s[a] -= g2[a]
-        s[a + 1] -= 2.0 * g2[a]
-        s[a + 2] -= g2[a]
+            g2 = ga * (qq[0, 0, b] + qq[1, 1, b] + qq[2, 2, b] + qq[3, 3, b])
+            # |q|^4 is of degree 4: elevated to 6 by the factor (1 - t + t)^2, scaled [1, 2, 1]
+            s[side, a + b] -= g2
+            s[side, a + b + 1] -= 2.0 * g2
+            s[side, a + b + 2] -= g2
+
+
+@_jit
+def quadric_rigid(radii, p0, q0, p1, q1):
+    """(P, U, s) in Bernstein form of the rigid motion (centre lerp, quaternion lerp); see :func:`rigid_scaled_into`."""
+    P = np.empty((3, 3, 1, 5))
+    U = np.empty((3, 1, 6))
+    s = np.empty((1, 7))
+    rigid_scaled_into(radii, p0, q0, p1, q1, np.zeros(3), 1.0, P, U, s, 0)
     b4 = bz.binomial_row(4)
     b5 = bz.binomial_row(5)
     b6 = bz.binomial_row(6)
-    for a in range(5):
-        P[:, :, a] /= b4[a]
-    for a in range(6):
-        U[:, a] /= b5[a]
-    for a in range(7):
-        s[a] /= b6[a]
-    return P, U, s
+    return P[:, :, 0] / b4, U[:, 0] / b5, s[0] / b6
 
 
 @_jit

@@ -24,10 +24,8 @@ from numba.extending import intrinsic
 
 from mjccd import _validate
 from mjccd import filters as fl
-from mjccd.ccd import NOISE, _balanced, build_F, solve_intervals
-from mjccd.motion import quadric_affine, quadric_at, quadric_rigid
-from mjccd.quadric import (quadric_matrix, separating_plane_matrices, static_status_pose,
-                           touching_point)
+from mjccd.ccd import exact_pair
+from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
@@ -75,34 +73,6 @@ def read_ticks():
 
 
 # ---------------------------------------------------------------- kernels
-
-
-@_jit
-def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
-    """Exact CCD of one pair: (status at start, intervals (k, 2), point, normal).
-
-    The same construction as :func:`mjccd.ccd.rigid_first_contact` (common
-    origin and length, balanced quadrics), for either motion model.
-    point/normal are zero when there is no external touch at t > 0.
-    """
-    length = max(ra.max(), rb.max())
-    origin = 0.25 * (pa0 + pa1 + pb0 + pb1)
-    if affine:
-        A = _balanced(*quadric_affine(ra / length, (pa0 - origin) / length, qa0, (pa1 - origin) / length, qa1))
-        B = _balanced(*quadric_affine(rb / length, (pb0 - origin) / length, qb0, (pb1 - origin) / length, qb1))
-    else:
-        A = _balanced(*quadric_rigid(ra / length, (pa0 - origin) / length, qa0, (pa1 - origin) / length, qa1))
-        B = _balanced(*quadric_rigid(rb / length, (pb0 - origin) / length, qb0, (pb1 - origin) / length, qb1))
-    F = build_F(A[0], A[1], A[2], B[0], B[1], B[2])
-    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
-    point = np.zeros(3)
-    normal = np.zeros(3)
-    if status0 == 1 and intervals.shape[0] > 0:
-        t = intervals[0, 0]
-        p, n = touching_point(quadric_at(A[0], A[1], A[2], t), quadric_at(B[0], B[1], B[2], t), u)
-        point = origin + length * p
-        normal = n
-    return status0, intervals, point, normal
 
 
 @_inline

@@ -27,8 +27,9 @@ import numpy as np
 
 from mjccd import replay
 from mjccd.bench.report import write_section
+from mjccd.ccd import exact_pair
 from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, Scene,
-                         exact_pair, pairs_between, read_ticks)
+                         pairs_between, read_ticks)
 
 # ---------------------------------------------------------------- boxing workload
 

@@ -501,8 +501,14 @@ class Scene:
             raise ValueError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, got {arr[same[0]].tolist()}")
         self.pairs = np.ascontiguousarray(arr)
         self.plane_cache = bool(plane_cache)
-        self._buffers = None
         self.reset_cache()
+        n, npairs = len(self.radii), len(self.pairs)
+        # per-frame arrays of step and run, reused (results copy what they keep)
+        self._buffers = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 4)),
+                         np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs),
+                         np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
+                         np.zeros(N_COUNTERS, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
+                         workspace(self.radii, npairs, self.motion == "affine"))
 
     def reset_cache(self):
         """Forget every cached separating plane."""
@@ -520,14 +526,7 @@ class Scene:
         return p, q
 
     def _frame_buffers(self):
-        """Per-frame arrays of :meth:`step`, allocated on first use and reused (results copy what they keep)."""
-        if self._buffers is None:
-            n, npairs = len(self.radii), len(self.pairs)
-            self._buffers = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 4)),
-                             np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs),
-                             np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
-                             np.zeros(N_COUNTERS, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
-                             workspace(self.radii, npairs, self.motion == "affine"))
+        """Per-frame arrays of :meth:`step` and :meth:`run` (allocated once, at construction)."""
         return self._buffers
 
     def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):

@@ -31,18 +31,6 @@ _BINOMIALS = np.array([[float(math.comb(n, k)) for k in range(TABLED_DEGREE + 1)
 
 
 @_jit
-def binomial(n, k):
-    """C(n, k) as a float (from the table up to :data:`TABLED_DEGREE`)."""
-    if n <= TABLED_DEGREE:
-        return _BINOMIALS[n, k]
-    k = min(k, n - k)
-    out = 1.0
-    for j in range(1, k + 1):
-        out = out * (n - k + j) / j
-    return out
-
-
-@_jit
 def binomial_row(n):
     """The binomial coefficients C(n, 0..n) as floats."""
     row = np.empty(n + 1)
@@ -68,14 +56,11 @@ def evaluate_row(F, i, t):
     s = (1.0 - t) / t if flip else t / (1.0 - t)
     # Horner in s over the coefficients, from the end far from t
     acc = F[i, 0] if flip else F[i, n]
-    if n <= TABLED_DEGREE:
-        for k in range(n - 1, -1, -1):
-            acc = acc * s + _BINOMIALS[n, k] * (F[i, n - k] if flip else F[i, k])
-    else:
-        binom = 1.0
-        for k in range(n - 1, -1, -1):
-            binom = binom * (k + 1) / (n - k)
-            acc = acc * s + binom * (F[i, n - k] if flip else F[i, k])
+    tabled = n <= TABLED_DEGREE
+    binom = 1.0
+    for k in range(n - 1, -1, -1):
+        binom = _BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        acc = acc * s + binom * (F[i, n - k] if flip else F[i, k])
     return acc * (t if flip else 1.0 - t) ** n
 
 
@@ -276,11 +261,16 @@ def value_and_slope(c, t):
     # coefficient k of the polynomial and of its derivative, read from the far end when flipped
     acc = c[0] if flip else c[n]
     dacc = (c[0] - c[1]) if flip else (c[n] - c[n - 1])
+    tabled = n <= TABLED_DEGREE
+    binom = 1.0
     for k in range(n - 1, -1, -1):
-        acc = acc * x + binomial(n, k) * (c[n - k] if flip else c[k])
+        binom = _BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        acc = acc * x + binom * (c[n - k] if flip else c[k])
+    binom = 1.0
     for k in range(n - 2, -1, -1):
+        binom = _BINOMIALS[n - 1, k] if tabled else binom * (k + 1) / (n - 1 - k)
         diff = (c[n - k - 1] - c[n - k]) if flip else (c[k + 1] - c[k])
-        dacc = dacc * x + binomial(n - 1, k) * diff
+        dacc = dacc * x + binom * diff
     far = t if flip else 1.0 - t
     slope = n * dacc * far ** (n - 1)
     return acc * far ** n, -slope if flip else slope
@@ -477,12 +467,11 @@ def _binomial_grid(m, n):
 @_jit
 def from_scaled_into(S):
     """In place: a bivariate polynomial in scaled form back to plain Bernstein coefficients (returns ``S``)."""
-    m = S.shape[0] - 1
-    n = S.shape[1] - 1
-    for i in range(m + 1):
-        bi = binomial(m, i)
-        for j in range(n + 1):
-            S[i, j] /= bi * binomial(n, j)
+    bm = binomial_row(S.shape[0] - 1)
+    bn = binomial_row(S.shape[1] - 1)
+    for i in range(S.shape[0]):
+        for j in range(S.shape[1]):
+            S[i, j] /= bm[i] * bn[j]
     return S
 
 

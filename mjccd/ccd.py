@@ -32,7 +32,7 @@ from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz
-from mjccd.motion import Motion, quadric_affine, quadric_at, rigid_scaled_into
+from mjccd.motion import Affine, Motion, Rigid, quadric_affine, quadric_at, rigid_scaled_into
 from mjccd.quadric import (STATUS_NAMES, Ellipsoid, quartic_max, quartic_max5, status_from_max,
                            touching_point)
 
@@ -716,16 +716,28 @@ def rigid_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1
     return status0, intervals[0, 0], point, normal
 
 
+def _check_pair(a, motion_a, b, motion_b):
+    for name, e in (("a", a), ("b", b)):
+        if not isinstance(e, Ellipsoid):
+            raise ValueError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
+    for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
+        if not isinstance(m, Motion):
+            raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
+
+
+def _two_pose_kind(motion_a, motion_b):
+    """True (affine) or False (rigid) when both motions interpolate two poses the same way, else None."""
+    for kind, affine in ((Rigid, False), (Affine, True)):
+        if type(motion_a) is kind and type(motion_b) is kind:
+            return affine
+    return None
+
+
 class _Pair:
     """The CCD function of one pair, built once and queried."""
 
     def __init__(self, a, motion_a, b, motion_b):
-        for name, e in (("a", a), ("b", b)):
-            if not isinstance(e, Ellipsoid):
-                raise ValueError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
-        for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
-            if not isinstance(m, Motion):
-                raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
+        _check_pair(a, motion_a, b, motion_b)
         self.length = float(max(a.radii.max(), b.radii.max()))
         self.F, self.Fabs, self.origin, self.pencil = prepare_pair(
             *motion_a.quadric(a.radii), *motion_b.quadric(b.radii), self.length)
@@ -747,15 +759,22 @@ def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
     running bound when many pairs are solved for the earliest contact.
     """
     t_max = _validate.time_bound(t_max, "t_max")
-    pair = _Pair(a, motion_a, b, motion_b)
-    status0, intervals, u = pair.solve(t_max, True)
+    _check_pair(a, motion_a, b, motion_b)
+    affine = _two_pose_kind(motion_a, motion_b)
+    if affine is not None:  # the fused kernel, as batched callers use it
+        status0, intervals, point, normal = exact_pair(
+            affine, a.radii, motion_a.position0, motion_a.quaternion0, motion_a.position1, motion_a.quaternion1,
+            b.radii, motion_b.position0, motion_b.quaternion0, motion_b.position1, motion_b.quaternion1, t_max, True)
+    else:
+        pair = _Pair(a, motion_a, b, motion_b)
+        status0, intervals, u = pair.solve(t_max, True)
+        if status0 == 1 and len(intervals):
+            point, normal = pair.touch(float(intervals[0, 0]), u)
     if status0 != 1:
         return Contact(0.0, None, None, STATUS_NAMES[int(status0)])
     if len(intervals) == 0:
         return None
-    t = float(intervals[0, 0])
-    point, normal = pair.touch(t, u)
-    return Contact(t, point, normal, "separate")
+    return Contact(float(intervals[0, 0]), point, normal, "separate")
 
 
 def collision_intervals(a, motion_a, b, motion_b):

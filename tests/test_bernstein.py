@@ -81,6 +81,34 @@ def test_first_root_survives_a_root_at_the_clipped_end():
     assert bz.first_root(c, 1e-15) == pytest.approx(4.8905525e-7, rel=1e-6)
 
 
+@pytest.mark.parametrize("deg", [1, 2, 7, 18, 60])  # 60: above the tabled binomials
+def test_value_and_slope(deg):
+    p = rng.normal(size=deg + 1)
+    c = bz.from_power(p)
+    dp = np.polynomial.polynomial.polyder(p)
+    for t in [0.0, 0.2, 0.5, 0.51, 0.9, 1.0]:
+        value, slope = bz.value_and_slope(c, t)
+        assert value == pytest.approx(power_eval(p, t), abs=1e-9)
+        assert slope == pytest.approx(power_eval(dp, t), abs=1e-8)
+
+
+def test_newton_fast_path_never_returns_a_later_root():
+    """The certified Newton root is the first root or nothing (-1, clipping decides), never another root."""
+    local = np.random.default_rng(3)
+    declined = 0
+    for _ in range(500):
+        roots = local.uniform(-0.5, 1.5, size=local.integers(2, 6))
+        c = bz.from_power(np.polynomial.polynomial.polyfromroots(roots))
+        inside = np.sort(roots[(roots >= 0.0) & (roots <= 1.0)])
+        fast = bz._newton_first_root(c, 1e-15)
+        if fast < 0.0:
+            declined += 1
+            continue
+        assert len(inside) and fast == pytest.approx(inside[0], abs=1e-9)
+        assert bz.first_root(c, 1e-15) == fast
+    assert 0 < declined < 500  # both branches are exercised
+
+
 def test_first_root_none():
     c = bz.from_power(np.array([1.0, -1.0, 1.0]))  # 1 - t + t^2 > 0
     assert bz.first_root(c, 1e-15) == -1.0

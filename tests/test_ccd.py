@@ -261,8 +261,9 @@ def test_cli_solve_and_errors(tmp_path):
     assert proc.returncode == 2 and "version: expected 1" in proc.stderr
 
 
-def test_fused_rigid_kernel_matches_api():
-    from mjccd.ccd import rigid_first_contact
+def test_fused_kernel_matches_the_general_path():
+    """first_contact of two Rigid motions (the fused kernel) against the general pencil of the motions' quadrics."""
+    from mjccd.ccd import rigid_first_contact, solve_pair
 
     for seed in range(25):
         r = np.random.default_rng(100 + seed)
@@ -272,13 +273,16 @@ def test_fused_rigid_kernel_matches_api():
         pb0, pb1 = r.normal(size=3) * 0.3, r.normal(size=3) * 0.3
         a, b = mjccd.Ellipsoid(ra), mjccd.Ellipsoid(rb)
         ma, mb = mjccd.Rigid(pa0, qs[0], pa1, qs[1]), mjccd.Rigid(pb0, qs[2], pb1, qs[3])
-        want = mjccd.first_contact(a, ma, b, mb)
+        _, want, _ = solve_pair(a, ma, b, mb)
+        api = mjccd.first_contact(a, ma, b, mb)
         status, t, point, normal = rigid_first_contact(ra, pa0, ma.quaternion0, pa1, ma.quaternion1,
                                                        rb, pb0, mb.quaternion0, pb1, mb.quaternion1, 1.0)
         if want is None:
-            assert t == -1.0
+            assert t == -1.0 and api is None
         else:
             assert t == pytest.approx(want.time, abs=1e-12)
+            assert api.time == t and api.status_at_start == want.status_at_start
             if want.point is not None:
                 assert np.allclose(point, want.point, atol=1e-9)
                 assert np.allclose(normal, want.normal, atol=1e-9)
+                assert np.array_equal(api.point, point)

@@ -33,7 +33,7 @@ from numba.typed import List
 from mjccd import _validate
 from mjccd import bernstein as bz
 from mjccd.motion import Affine, Motion, Rigid, quadric_affine, quadric_at, rigid_scaled_into
-from mjccd.quadric import (STATUS_NAMES, Ellipsoid, quartic_max, quartic_max5, status_from_max,
+from mjccd.quadric import (STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
                            touching_point)
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -105,18 +105,13 @@ def balance_side(Pp, Up, sp, side):
 
     A(0) is read off the first coefficients (scaled and plain agree there).
     """
-    a00, a01, a02 = Pp[0, 0, side, 0], Pp[0, 1, side, 0], Pp[0, 2, side, 0]
-    a11, a12, a22 = Pp[1, 1, side, 0], Pp[1, 2, side, 0], Pp[2, 2, side, 0]
-    u0, u1, u2, s0 = Up[0, side, 0], Up[1, side, 0], Up[2, side, 0], sp[side, 0]
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    det = (s0 * (a00 * c00 + a01 * c01 + a02 * c02)
-           - (u0 * (c00 * u0 + c01 * u1 + c02 * u2) + u1 * (c01 * u0 + c11 * u1 + c12 * u2)
-              + u2 * (c02 * u0 + c12 * u1 + c22 * u2)))
+    A0 = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            A0[i, j] = Pp[i, j, side, 0]
+        A0[i, 3] = A0[3, i] = Up[i, side, 0]
+    A0[3, 3] = sp[side, 0]
+    det = det4(A0)
     scale = abs(det) ** 0.25
     if not np.isfinite(scale) or scale == 0.0:
         scale = 0.0
@@ -147,6 +142,11 @@ def pencil_quadric_at(Pp, Up, sp, side, t):
     return A
 
 
+# adj(P)[i, j] = P[a, b] P[c, d] - P[e, f] P[g, h] for symmetric P, i <= j: rows (i, j, a, b, c, d, e, f, g, h)
+_ADJUGATE_TERMS = ((0, 0, 1, 1, 2, 2, 1, 2, 1, 2), (1, 1, 0, 0, 2, 2, 0, 2, 0, 2), (2, 2, 0, 0, 1, 1, 0, 1, 0, 1),
+                   (0, 1, 0, 2, 1, 2, 0, 1, 2, 2), (0, 2, 0, 1, 1, 2, 0, 2, 1, 1), (1, 2, 0, 1, 0, 2, 0, 0, 1, 2))
+
+
 @_jit
 def F_from_pencil(Pp, Up, sp):
     """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from the scaled pencil.
@@ -159,18 +159,9 @@ def F_from_pencil(Pp, Up, sp):
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
     C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p); only i <= j is filled
-    _acc(C[0, 0], Pp[1, 1], Pp[2, 2], 1.0)
-    _acc(C[0, 0], Pp[1, 2], Pp[1, 2], -1.0)
-    _acc(C[1, 1], Pp[0, 0], Pp[2, 2], 1.0)
-    _acc(C[1, 1], Pp[0, 2], Pp[0, 2], -1.0)
-    _acc(C[2, 2], Pp[0, 0], Pp[1, 1], 1.0)
-    _acc(C[2, 2], Pp[0, 1], Pp[0, 1], -1.0)
-    _acc(C[0, 1], Pp[0, 2], Pp[1, 2], 1.0)
-    _acc(C[0, 1], Pp[0, 1], Pp[2, 2], -1.0)
-    _acc(C[0, 2], Pp[0, 1], Pp[1, 2], 1.0)
-    _acc(C[0, 2], Pp[0, 2], Pp[1, 1], -1.0)
-    _acc(C[1, 2], Pp[0, 1], Pp[0, 2], 1.0)
-    _acc(C[1, 2], Pp[0, 0], Pp[1, 2], -1.0)
+    for i, j, a, b, c, d, e, f, g, h in _ADJUGATE_TERMS:
+        _acc(C[i, j], Pp[a, b], Pp[c, d], 1.0)
+        _acc(C[i, j], Pp[e, f], Pp[g, h], -1.0)
     detP = np.zeros((4, 3 * p + 1))
     _acc(detP, Pp[0, 0], C[0, 0], 1.0)
     _acc(detP, Pp[0, 1], C[0, 1], 1.0)

@@ -8,10 +8,15 @@ target (1e-9 in t, 1e-6 of the size for the contact point).
 import copy
 import itertools
 import math
+import os
+import sys
 
 from hypothesis import assume, given, settings, strategies as st
 
 import mjccd
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from make_reference import quat_mul, rot_matrix  # noqa: E402  (exact rational quaternion helpers)
 
 TOL_T = 1e-9
 TOL_P = 1e-6
@@ -26,30 +31,15 @@ def _cube_quats():
         nz = sum(1 for v in q if v)
         if nz not in (1, 2, 4):
             continue
-        R = tuple(tuple(row) for row in _rot(q))
+        R = tuple(tuple(row) for row in rot_matrix(q))
         if R not in seen:
             seen.add(R)
             out.append([float(v) for v in q])
     return out
 
 
-def _rot(q):
-    w, x, y, z = q
-    n = w * w + x * x + y * y + z * z
-    return [[(w * w + x * x - y * y - z * z) / n, 2 * (x * y - w * z) / n, 2 * (x * z + w * y) / n],
-            [2 * (x * y + w * z) / n, (w * w - x * x + y * y - z * z) / n, 2 * (y * z - w * x) / n],
-            [2 * (x * z - w * y) / n, 2 * (y * z + w * x) / n, (w * w - x * x - y * y + z * z) / n]]
-
-
 CUBE = _cube_quats()
 assert len(CUBE) == 24
-
-
-def _qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return [w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2]
 
 
 def _mv(R, v):
@@ -60,15 +50,15 @@ def _mv(R, v):
 def transform_motion(m, g, p):
     """Motion followed by x -> R(g) x + p."""
     m = copy.deepcopy(m)
-    R = _rot(g)
+    R = rot_matrix(g)
     pt = lambda v: [a + b for a, b in zip(_mv(R, v), p)]
     k = m['type']
     if k == 'static':
-        m['position'], m['quaternion'] = pt(m['position']), _qmul(g, m['quaternion'])
+        m['position'], m['quaternion'] = pt(m['position']), quat_mul(g, m['quaternion'])
     elif k in ('rigid', 'affine'):
         for key in ('start', 'end'):
             m[key]['position'] = pt(m[key]['position'])
-            m[key]['quaternion'] = _qmul(g, m[key]['quaternion'])
+            m[key]['quaternion'] = quat_mul(g, m[key]['quaternion'])
     elif k == 'linear_affine':
         for key in ('start', 'end'):
             M = m[key]
@@ -84,7 +74,7 @@ def transform_motion(m, g, p):
     elif k == 'chain':
         base = m['elements'][0]
         assert base['type'] == 'fixed'
-        base['position'], base['quaternion'] = pt(base['position']), _qmul(g, base['quaternion'])
+        base['position'], base['quaternion'] = pt(base['position']), quat_mul(g, base['quaternion'])
     return m
 
 
@@ -146,7 +136,7 @@ def motion(draw):
     if kind == 'linear_affine':
         mats = []
         for _ in range(2):
-            R = _rot(draw(quat))
+            R = rot_matrix(draw(quat))
             sc = [draw(dy(0.75, 1.25, 8)) for _ in range(3)]
             pos = draw(vec)
             mats.append([[R[i][j] * sc[j] for j in range(3)] + [pos[i]] for i in range(3)])
@@ -236,7 +226,7 @@ def test_rigid_transform_invariance(c, g, p):
     r1 = solve(c1)
     same_times(r0, r1)
     if r0['contact_point'] is not None:
-        q = [u + v for u, v in zip(_mv(_rot(g), r0['contact_point']), p)]
+        q = [u + v for u, v in zip(_mv(rot_matrix(g), r0['contact_point']), p)]
         close_points(q, r1['contact_point'], size_of(c))
 
 

@@ -759,6 +759,7 @@ def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
     else:
         pair = _Pair(a, motion_a, b, motion_b)
         status0, intervals, u = pair.solve(t_max, True)
+        point = normal = None
         if status0 == 1 and len(intervals):
             point, normal = pair.touch(float(intervals[0, 0]), u)
     if status0 != 1:

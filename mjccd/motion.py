@@ -164,12 +164,15 @@ def rigid_scaled_into(radii, p0, q0, p1, q1, origin, length, P, U, s, side):
         R[2, 0, a] = 2.0 * (qq[1, 3, a] - qq[0, 2, a])
         R[2, 1, a] = 2.0 * (qq[2, 3, a] + qq[0, 1, a])
         R[2, 2, a] = qq[0, 0, a] - qq[1, 1, a] - qq[2, 2, a] + qq[3, 3, a]
+    d = ((length / radii[0]) ** 2, (length / radii[1]) ** 2, (length / radii[2]) ** 2)
+    c0 = ((p0[0] - origin[0]) / length, (p0[1] - origin[1]) / length, (p0[2] - origin[2]) / length)
+    c1 = ((p1[0] - origin[0]) / length, (p1[1] - origin[1]) / length, (p1[2] - origin[2]) / length)
     for i in range(3):
         for j in range(i, 3):
             for a in range(5):
                 P[i, j, side, a] = 0.0
             for k in range(3):
-                dk = (length / radii[k]) ** 2
+                dk = d[k]
                 for a in range(3):
                     ra = R[i, k, a] * dk
                     for b in range(3):
@@ -182,19 +185,15 @@ def rigid_scaled_into(radii, p0, q0, p1, q1, origin, length, P, U, s, side):
         for a in range(6):
             U[i, side, a] = 0.0
         for j in range(3):
-            c0 = (p0[j] - origin[j]) / length
-            c1 = (p1[j] - origin[j]) / length
             for a in range(5):
-                U[i, side, a] -= P[i, j, side, a] * c0
-                U[i, side, a + 1] -= P[i, j, side, a] * c1
+                U[i, side, a] -= P[i, j, side, a] * c0[j]
+                U[i, side, a + 1] -= P[i, j, side, a] * c1[j]
     for a in range(7):
         s[side, a] = 0.0
     for i in range(3):  # s = -p . U - |q|^4
-        c0 = (p0[i] - origin[i]) / length
-        c1 = (p1[i] - origin[i]) / length
         for a in range(6):
-            s[side, a] -= U[i, side, a] * c0
-            s[side, a + 1] -= U[i, side, a] * c1
+            s[side, a] -= U[i, side, a] * c0[i]
+            s[side, a + 1] -= U[i, side, a] * c1[i]
     for a in range(3):
         ga = qq[0, 0, a] + qq[1, 1, a] + qq[2, 2, a] + qq[3, 3, a]
         for b in range(3):

@@ -525,10 +525,6 @@ class Scene:
         q[:] = checked[:, 3:]
         return p, q
 
-    def _frame_buffers(self):
-        """Per-frame arrays of :meth:`step` and :meth:`run` (allocated once, at construction)."""
-        return self._buffers
-
     def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
         """Check one frame.
 
@@ -543,7 +539,7 @@ class Scene:
         Returns:
             :class:`FrameResult`.
         """
-        p0, q0, p1, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = self._frame_buffers()
+        p0, q0, p1, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = self._buffers
         self._poses(poses_t0, "poses_t0", p0, q0)
         self._poses(poses_t1, "poses_t1", p1, q1)
         best_k, niv, iv, owner = step_kernel(
@@ -588,7 +584,7 @@ class Scene:
         out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
                         np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
-        _, _, _, _, _, entry, times, points, normals, _, _, iv, owner, ws = self._frame_buffers()
+        _, _, _, _, _, entry, times, points, normals, _, _, iv, owner, ws = self._buffers
         run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.plane_cache,
                    self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing), out.time, out.pair, out.point, out.normal,
                    out.counters, out.outcomes, out.ticks, out.frame_ticks, entry, times, points, normals, iv, owner,

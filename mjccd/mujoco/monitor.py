@@ -436,7 +436,7 @@ class StepCheck:
         (pair -1 when there is none).
         """
         q0_p, q0, q1_p, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = \
-            scene._frame_buffers()
+            scene._buffers
         scene._poses(p0, "poses_t0", q0_p, q0)
         scene._poses(p1, "poses_t1", q1_p, q1)
         k, _, _, _ = step_kernel(scene.motion == "affine", scene.radii, q0_p, q0, q1_p, q1, scene.pairs,

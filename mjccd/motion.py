@@ -135,11 +135,14 @@ def quadric_from_w(G, h, g, radii):
 
 
 @_jit
-def rigid_scaled_into(radii, p0, q0, p1, q1, origin, length, P, U, s, side):
+def rigid_scaled_into(radii, p0, q0, p1, q1, origin0, origin1, length, P, U, s, side):
     """Scaled Bernstein (P, U, s) of a rigid motion, written into ``P[:, :, side]``, ``U[:, side]``, ``s[side]``.
 
-    The motion is taken in the frame x' = (x - origin) / length (a rigid change
-    of frame and a uniform scaling, which change no answer).  With
+    The motion is taken in the frame x' = (x - origin(t)) / length, whose
+    origin moves from ``origin0`` to ``origin1`` linearly in t (a translation
+    and a uniform scaling: taken for both bodies they change no answer, as the
+    determinant of a pencil is invariant under a common congruence with
+    determinant one).  With
     ``R = rot(q)`` the unnormalised rotation of the quaternion lerp,
     ``|q|^4 A = [[R D R^T, -R D R^T p], [., p^T R D R^T p - |q|^4]]``:
     P = R D R^T (degree 4), U = -P p (degree 5), s = p^T P p - |q|^4
@@ -165,8 +168,8 @@ def rigid_scaled_into(radii, p0, q0, p1, q1, origin, length, P, U, s, side):
         R[2, 1, a] = 2.0 * (qq[2, 3, a] + qq[0, 1, a])
         R[2, 2, a] = qq[0, 0, a] - qq[1, 1, a] - qq[2, 2, a] + qq[3, 3, a]
     d = ((length / radii[0]) ** 2, (length / radii[1]) ** 2, (length / radii[2]) ** 2)
-    c0 = ((p0[0] - origin[0]) / length, (p0[1] - origin[1]) / length, (p0[2] - origin[2]) / length)
-    c1 = ((p1[0] - origin[0]) / length, (p1[1] - origin[1]) / length, (p1[2] - origin[2]) / length)
+    c0 = ((p0[0] - origin0[0]) / length, (p0[1] - origin0[1]) / length, (p0[2] - origin0[2]) / length)
+    c1 = ((p1[0] - origin1[0]) / length, (p1[1] - origin1[1]) / length, (p1[2] - origin1[2]) / length)
     for i in range(3):
         for j in range(i, 3):
             for a in range(5):
@@ -210,7 +213,7 @@ def quadric_rigid(radii, p0, q0, p1, q1):
     P = np.empty((3, 3, 1, 5))
     U = np.empty((3, 1, 6))
     s = np.empty((1, 7))
-    rigid_scaled_into(radii, p0, q0, p1, q1, np.zeros(3), 1.0, P, U, s, 0)
+    rigid_scaled_into(radii, p0, q0, p1, q1, np.zeros(3), np.zeros(3), 1.0, P, U, s, 0)
     b4 = bz.binomial_row(4)
     b5 = bz.binomial_row(5)
     b6 = bz.binomial_row(6)

@@ -29,6 +29,9 @@ STATUS_NAMES = {SEPARATE: "separate", TOUCHING: "touching", OVERLAPPING: "overla
 
 # |max g| below this many rounding units of the determinant counts as touching.
 TOUCH_ULPS = 256.0
+# width in u at which the argmax of the quartic is accepted; the maximum itself
+# is then exact to second order (g' vanishes there)
+ARGMAX_TOL = 1e-14
 
 
 # ---------------------------------------------------------------- kernels
@@ -169,21 +172,20 @@ def _max_on_piece(g0, g1, g2, g3, g4, lo, hi):
     u = lo - flo * (hi - lo) / (fhi - flo)
     for _ in range(100):
         f = _cubic(d0, d1, d2, d3, u)
+        if f == 0.0:
+            break
         if f > 0.0:
             lo = u
         else:
             hi = u
-        if hi - lo <= 1e-15:
+        if hi - lo <= ARGMAX_TOL:
             break
         v = 1.0 - u
         df = e0 * v * v + 2.0 * e1 * u * v + e2 * u * u
-        step = f / df if df < 0.0 else 0.0
-        nxt = u - step
-        if not (lo < nxt < hi) or step == 0.0:
-            nxt = 0.5 * (lo + hi)
-        elif abs(step) <= 2.220446049250313e-16 * max(abs(u), 1e-300):
+        nxt = u - f / df if df < 0.0 else 0.5 * (lo + hi)
+        if abs(nxt - u) <= ARGMAX_TOL:  # Newton has converged
             break
-        u = nxt
+        u = nxt if lo < nxt < hi else 0.5 * (lo + hi)
     return _quartic5(g0, g1, g2, g3, g4, u), u
 
 

@@ -66,6 +66,44 @@ def _acc(out, x, y, sign):
 
 
 @_jit
+def _dot3_into(out, x0, x1, x2, y0, y1, y2, sign):
+    """out += sign * (x0 y0 + x1 y1 + x2 y2) for bivariate polynomials in scaled form.
+
+    The three products share one pass (three multiply-adds per innermost
+    step), which runs about twice as fast as three :func:`_acc` calls.
+    """
+    mx, nx = x0.shape
+    my, ny = y0.shape
+    for i1 in range(mx):
+        for i2 in range(my):
+            o = i1 + i2
+            for j1 in range(nx):
+                a0 = sign * x0[i1, j1]
+                a1 = sign * x1[i1, j1]
+                a2 = sign * x2[i1, j1]
+                for j2 in range(ny):
+                    out[o, j1 + j2] += a0 * y0[i2, j2] + a1 * y1[i2, j2] + a2 * y2[i2, j2]
+
+
+@_jit
+def _minor_into(out, x, y, e, g):
+    """out += x y - e g for four pencil entries (rows: the A and B sides), in scaled form."""
+    for j1 in range(x.shape[1]):
+        x0 = x[0, j1]
+        x1 = x[1, j1]
+        e0 = e[0, j1]
+        e1 = e[1, j1]
+        for j2 in range(y.shape[1]):
+            y0 = y[0, j2]
+            y1 = y[1, j2]
+            g0 = g[0, j2]
+            g1 = g[1, j2]
+            out[0, j1 + j2] += x0 * y0 - e0 * g0
+            out[1, j1 + j2] += x0 * y1 + x1 * y0 - e0 * g1 - e1 * g0
+            out[2, j1 + j2] += x1 * y1 - e1 * g1
+
+
+@_jit
 def empty_pencil(p, q, r):
     """Scaled pencil arrays for quadrics of degrees (p, q, r) in (P, U, s): side 0 is A, side 1 is B.
 
@@ -153,21 +191,22 @@ def F_from_pencil(Pp, Up, sp):
 
     Uses ``det [[P, U], [U^T, s]] = s det P - U^T adj(P) U``, which keeps
     every intermediate at its true degree; in the scaled basis every product
-    is a plain convolution.  When side 0 has U = 0 (body A centred at the
-    frame origin at every t, see :func:`exact_pair`), U = u U_B and the second
-    term is u^2 U_B^T adj(P) U_B: rows 2..4 of F, at a third of the cost.
+    is a plain convolution, and products that are summed share one pass.
+    When side 0 has U = 0 (body A centred at the frame origin at every t, see
+    :func:`exact_pair`), U = u U_B and the second term is u^2 U_B^T adj(P) U_B:
+    rows 2..4 of F, at a third of the cost.
     """
     p = Pp.shape[3] - 1
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
-    C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p); only i <= j is filled
+    C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p)
     for i, j, a, b, c, d, e, f, g, h in _ADJUGATE_TERMS:
-        _acc(C[i, j], Pp[a, b], Pp[c, d], 1.0)
-        _acc(C[i, j], Pp[e, f], Pp[g, h], -1.0)
+        _minor_into(C[i, j], Pp[a, b], Pp[c, d], Pp[e, f], Pp[g, h])
+    for i in range(3):
+        for j in range(i):
+            C[i, j] = C[j, i]
     detP = np.zeros((4, 3 * p + 1))
-    _acc(detP, Pp[0, 0], C[0, 0], 1.0)
-    _acc(detP, Pp[0, 1], C[0, 1], 1.0)
-    _acc(detP, Pp[0, 2], C[0, 2], 1.0)
+    _dot3_into(detP, Pp[0, 0], Pp[0, 1], Pp[0, 2], C[0, 0], C[0, 1], C[0, 2], 1.0)
     n1 = 3 * p + r
     n2 = 2 * p + 2 * q
     n = max(n1, n2)
@@ -179,21 +218,13 @@ def F_from_pencil(Pp, Up, sp):
         for a in range(q + 1):
             if Up[i, 0, a] != 0.0:
                 a_centred = False
-    if a_centred:
-        V = np.empty((3, 2 * p + q + 1))
-        low = F2[2:]
-        for i in range(3):  # F2 -= u^2 U_B,i sum_j adj(P)_ij U_B,j
-            V[:, :] = 0.0
-            for j in range(3):
-                _acc(V, Up[j, 1:], C[min(i, j), max(i, j)], 1.0)
-            _acc(low, Up[i, 1:], V, -1.0)
-    else:
-        V = np.empty((4, 2 * p + q + 1))
-        for i in range(3):  # F2 -= U_i sum_j adj(P)_ij U_j
-            V[:, :] = 0.0
-            for j in range(3):
-                _acc(V, C[min(i, j), max(i, j)], Up[j], 1.0)
-            _acc(F2, Up[i], V, -1.0)
+    # with A centred, U = u U_B: one u-row, and the U term lands in rows 2..4 of F
+    u_rows = 1 if a_centred else 2
+    U = Up[:, 2 - u_rows:]
+    V = np.zeros((3, u_rows + 2, 2 * p + q + 1))  # V_i = sum_j adj(P)_ij U_j
+    for i in range(3):
+        _dot3_into(V[i], U[0], U[1], U[2], C[i, 0], C[i, 1], C[i, 2], 1.0)
+    _dot3_into(F2[4 - 2 * u_rows:], U[0], U[1], U[2], V[0], V[1], V[2], -1.0)
     F = bz.from_scaled_into(F)
     if n1 == n2:
         return F

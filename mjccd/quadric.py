@@ -396,37 +396,33 @@ def static_status_batch(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b, out):
 
 
 @_jit
+def _cofactor(M, i, j):
+    """(-1)^(i+j) times the minor of the 4x4 ``M`` without row i and column j."""
+    r0, r1, r2 = (1 if i == 0 else 0), (2 if i <= 1 else 1), (3 if i <= 2 else 2)
+    c0, c1, c2 = (1 if j == 0 else 0), (2 if j <= 1 else 1), (3 if j <= 2 else 2)
+    minor = _det3(M[r0, c0], M[r0, c1], M[r0, c2], M[r1, c0], M[r1, c1], M[r1, c2],
+                  M[r2, c0], M[r2, c1], M[r2, c2])
+    return minor if (i + j) % 2 == 0 else -minor
+
+
+@_jit
 def null_vector(M):
     """A vector spanning the kernel of a (numerically) rank-3 symmetric 4x4 matrix.
 
     The adjugate of a rank-3 matrix is rank one, ``adj M = k X X^T``; its
     column with the largest diagonal entry is the best-conditioned multiple
-    of X.
+    of X.  Only the diagonal and that column are computed.
     """
-    adj = np.empty((4, 4))
-    rows = np.empty(3, dtype=np.int64)
-    cols = np.empty(3, dtype=np.int64)
-    for i in range(4):
-        for j in range(4):
-            ri = 0
-            for r in range(4):
-                if r != j:
-                    rows[ri] = r
-                    ri += 1
-            ci = 0
-            for c in range(4):
-                if c != i:
-                    cols[ci] = c
-                    ci += 1
-            minor = _det3(M[rows[0], cols[0]], M[rows[0], cols[1]], M[rows[0], cols[2]],
-                          M[rows[1], cols[0]], M[rows[1], cols[1]], M[rows[1], cols[2]],
-                          M[rows[2], cols[0]], M[rows[2], cols[1]], M[rows[2], cols[2]])
-            adj[i, j] = minor if (i + j) % 2 == 0 else -minor
     best = 0
+    best_diag = abs(_cofactor(M, 0, 0))
     for i in range(1, 4):
-        if abs(adj[i, i]) > abs(adj[best, best]):
-            best = i
-    return adj[:, best].copy()
+        d = abs(_cofactor(M, i, i))
+        if d > best_diag:
+            best, best_diag = i, d
+    X = np.empty(4)
+    for i in range(4):
+        X[i] = _cofactor(M, best, i)  # adj(M)[i, best]
+    return X
 
 
 @_jit
@@ -436,15 +432,12 @@ def touching_point(A, B, u):
     ``u`` is the double root of det((1-u)A + uB) in (0, 1); the contact point
     spans the kernel of (1-u)A + uB (the thesis' Theorem 4.4 in u form).
     """
-    M = (1.0 - u) * A + u * B
-    X = null_vector(M)
+    X = null_vector((1.0 - u) * A + u * B)
     p = X[:3] / X[3]
-    Xh = np.empty(4)
-    Xh[:3] = p
-    Xh[3] = 1.0
-    n = (A @ Xh)[:3]
-    n = n / np.sqrt(n @ n)
-    return p, n
+    n = np.empty(3)
+    for i in range(3):
+        n[i] = A[i, 0] * p[0] + A[i, 1] * p[1] + A[i, 2] * p[2] + A[i, 3]
+    return p, n / np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
 
 
 @_jit

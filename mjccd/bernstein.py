@@ -26,7 +26,7 @@ _jit = numba.njit(cache=True, nogil=True)
 TABLED_DEGREE = 48
 # C(n, k) rounded once, for the degrees of every hot loop (rigid, affine and rational pairs); a
 # compile-time constant, so evaluation needs no division chain
-_BINOMIALS = np.array([[float(math.comb(n, k)) for k in range(TABLED_DEGREE + 1)]
+BINOMIALS = np.array([[float(math.comb(n, k)) for k in range(TABLED_DEGREE + 1)]
                        for n in range(TABLED_DEGREE + 1)])
 
 
@@ -35,7 +35,7 @@ def binomial_row(n):
     """The binomial coefficients C(n, 0..n) as floats."""
     row = np.empty(n + 1)
     if n <= TABLED_DEGREE:
-        row[:] = _BINOMIALS[n, :n + 1]
+        row[:] = BINOMIALS[n, :n + 1]
         return row
     row[0] = 1.0
     for i in range(1, n + 1):
@@ -59,7 +59,7 @@ def evaluate_row(F, i, t):
     tabled = n <= TABLED_DEGREE
     binom = 1.0
     for k in range(n - 1, -1, -1):
-        binom = _BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        binom = BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
         acc = acc * s + binom * (F[i, n - k] if flip else F[i, k])
     return acc * (t if flip else 1.0 - t) ** n
 
@@ -264,11 +264,11 @@ def value_and_slope(c, t):
     tabled = n <= TABLED_DEGREE
     binom = 1.0
     for k in range(n - 1, -1, -1):
-        binom = _BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        binom = BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
         acc = acc * x + binom * (c[n - k] if flip else c[k])
     binom = 1.0
     for k in range(n - 2, -1, -1):
-        binom = _BINOMIALS[n - 1, k] if tabled else binom * (k + 1) / (n - 1 - k)
+        binom = BINOMIALS[n - 1, k] if tabled else binom * (k + 1) / (n - 1 - k)
         diff = (c[n - k - 1] - c[n - k]) if flip else (c[k + 1] - c[k])
         dacc = dacc * x + binom * diff
     far = t if flip else 1.0 - t

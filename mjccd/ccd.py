@@ -250,10 +250,33 @@ def build_F(PA, UA, sA, PB, UB, sB):
 
 
 @_jit
+def _rows_at(F, t):
+    """F(., t) as five Bernstein coefficients in u: the five rows evaluated in one Horner pass."""
+    n = F.shape[1] - 1
+    if n > bz.TABLED_DEGREE:
+        return (bz.evaluate_row(F, 0, t), bz.evaluate_row(F, 1, t), bz.evaluate_row(F, 2, t),
+                bz.evaluate_row(F, 3, t), bz.evaluate_row(F, 4, t))
+    flip = t > 0.5
+    s = (1.0 - t) / t if flip else t / (1.0 - t)
+    end = 0 if flip else n
+    r0, r1, r2, r3, r4 = F[0, end], F[1, end], F[2, end], F[3, end], F[4, end]
+    for k in range(n - 1, -1, -1):
+        b = bz.BINOMIALS[n, k]
+        j = n - k if flip else k
+        r0 = r0 * s + b * F[0, j]
+        r1 = r1 * s + b * F[1, j]
+        r2 = r2 * s + b * F[2, j]
+        r3 = r3 * s + b * F[3, j]
+        r4 = r4 * s + b * F[4, j]
+    w = (t if flip else 1.0 - t) ** n
+    return r0 * w, r1 * w, r2 * w, r3 * w, r4 * w
+
+
+@_jit
 def state(F, t):
     """max_u F(u, t) and its argmax (F is quartic in u)."""
-    return quartic_max5(bz.evaluate_row(F, 0, t), bz.evaluate_row(F, 1, t), bz.evaluate_row(F, 2, t),
-                        bz.evaluate_row(F, 3, t), bz.evaluate_row(F, 4, t))
+    g0, g1, g2, g3, g4 = _rows_at(F, t)
+    return quartic_max5(g0, g1, g2, g3, g4)
 
 
 @_jit
@@ -268,9 +291,8 @@ def status_at(F, Fabs, noise, t):
     if abs(gmax) > TOUCH_ULPS * noise * Fabs.max():  # beyond any rounding noise of F
         return (1 if gmax > 0.0 else -1), gmax, u
     v = 1.0 - u
-    scale = (v * v * v * v * bz.evaluate_row(Fabs, 0, t) + 4.0 * u * v * v * v * bz.evaluate_row(Fabs, 1, t)
-             + 6.0 * u * u * v * v * bz.evaluate_row(Fabs, 2, t) + 4.0 * u * u * u * v * bz.evaluate_row(Fabs, 3, t)
-             + u * u * u * u * bz.evaluate_row(Fabs, 4, t))
+    a0, a1, a2, a3, a4 = _rows_at(Fabs, t)
+    scale = v * v * v * v * a0 + 4.0 * u * v * v * v * a1 + 6.0 * u * u * v * v * a2 + 4.0 * u * u * u * v * a3 + u * u * u * u * a4
     return status_from_max(gmax, noise * scale), gmax, u
 
 
@@ -744,15 +766,25 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
 
 
 @_jit
-def rigid_first_contact(radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1, qb1, t_max):
-    """Fused kernel for two rigid motions: (status at start, time or -1, point, normal); see :func:`exact_pair`."""
-    status0, intervals, point, normal = exact_pair(False, radii_a, pa0, qa0, pa1, qa1, radii_b, pb0, qb0, pb1,
-                                                   qb1, t_max, True)
+def rigid_first_contact(radii, positions, quaternions, t_max, touch):
+    """Fused kernel for two rigid motions: (status at start, first contact time or -1).
+
+    Body a then b: ``radii`` (2, 3), ``positions`` (2, 2, 3) and ``quaternions``
+    (2, 2, 4) at t = 0 then t = 1 (unit, q1 on the side of q0).  The touch
+    point and normal go to ``touch`` (2, 3), zero when there is none.  Plain
+    arrays in, scalars out: what a batched caller would loop over; see
+    :func:`exact_pair`.
+    """
+    status0, intervals, point, normal = exact_pair(
+        False, radii[0], positions[0, 0], quaternions[0, 0], positions[0, 1], quaternions[0, 1],
+        radii[1], positions[1, 0], quaternions[1, 0], positions[1, 1], quaternions[1, 1], t_max, True)
+    touch[0] = point
+    touch[1] = normal
     if status0 != 1:
-        return status0, 0.0, point, normal
+        return status0, 0.0
     if intervals.shape[0] == 0:
-        return status0, -1.0, point, normal
-    return status0, intervals[0, 0], point, normal
+        return status0, -1.0
+    return status0, intervals[0, 0]
 
 
 def _check_pair(a, motion_a, b, motion_b):

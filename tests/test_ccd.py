@@ -275,8 +275,11 @@ def test_fused_kernel_matches_the_general_path():
         ma, mb = mjccd.Rigid(pa0, qs[0], pa1, qs[1]), mjccd.Rigid(pb0, qs[2], pb1, qs[3])
         _, want, _ = solve_pair(a, ma, b, mb)
         api = mjccd.first_contact(a, ma, b, mb)
-        status, t, point, normal = rigid_first_contact(ra, pa0, ma.quaternion0, pa1, ma.quaternion1,
-                                                       rb, pb0, mb.quaternion0, pb1, mb.quaternion1, 1.0)
+        touch = np.empty((2, 3))
+        status, t = rigid_first_contact(np.array([ra, rb]), np.array([[pa0, pa1], [pb0, pb1]]),
+                                        np.array([[ma.quaternion0, ma.quaternion1], [mb.quaternion0, mb.quaternion1]]),
+                                        1.0, touch)
+        point, normal = touch
         if want is None:
             assert t == -1.0 and api is None
         else:

@@ -68,12 +68,14 @@ def _spheres_meet(q):
 
 
 def _fused(q):
-    qa0, qa1 = q.quaternion_a / np.linalg.norm(q.quaternion_a, axis=1, keepdims=True)
-    qb0, qb1 = q.quaternion_b / np.linalg.norm(q.quaternion_b, axis=1, keepdims=True)
-    qa1 = qa1 if qa0 @ qa1 >= 0 else -qa1
-    qb1 = qb1 if qb0 @ qb1 >= 0 else -qb1
-    return (q.radii_a, q.position_a[0], qa0, q.position_a[1], qa1,
-            q.radii_b, q.position_b[0], qb0, q.position_b[1], qb1, 1.0)
+    """Arguments of the fused kernel: radii (2, 3), positions (2, 2, 3), unit quaternions (2, 2, 4), t_max, out."""
+    quats = np.array([q.quaternion_a, q.quaternion_b], dtype=float)
+    quats /= np.linalg.norm(quats, axis=2, keepdims=True)
+    for body in quats:
+        if body[0] @ body[1] < 0:
+            body[1] *= -1.0
+    return (np.array([q.radii_a, q.radii_b], dtype=float), np.array([q.position_a, q.position_b], dtype=float),
+            quats, 1.0, np.empty((2, 3)))
 
 
 def _api(q):

@@ -53,6 +53,31 @@ INV_B8 = (1.0, 1 / 8, 1 / 28, 1 / 56, 1 / 70, 1 / 56, 1 / 28, 1 / 8, 1.0)  # sca
 
 
 @_inline
+def relative_sweep(ca0, ca1, qa0, qa1, ra, cb0, cb1, qb0, qb1, rb):
+    """Bound on how far any point of b moves relative to any point of a over the step.
+
+    |Δc_b - Δc_a| plus, per body, the chord its largest semi-axis ``r`` sweeps:
+    2 sin(θ/2) r with cos(θ/2) = |q0 . q1| / (|q0| |q1|).  Holds for the rigid
+    lerp (the rotation runs along the arc from q0 to q1) and for the affine
+    lerp (|(R1 - R0) y| <= 2 sin(θ/2) |y|), and for any sub-interval of the step.
+    """
+    dx = (cb1[0] - cb0[0]) - (ca1[0] - ca0[0])
+    dy = (cb1[1] - cb0[1]) - (ca1[1] - ca0[1])
+    dz = (cb1[2] - cb0[2]) - (ca1[2] - ca0[2])
+    return np.sqrt(dx * dx + dy * dy + dz * dz) + _chord(qa0, qa1, ra) + _chord(qb0, qb1, rb)
+
+
+@_inline
+def _chord(q0, q1, r):
+    """Largest displacement of a point at distance r from the centre under the rotation q0 -> q1."""
+    dot = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3]
+    n0 = q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3]
+    n1 = q1[0] * q1[0] + q1[1] * q1[1] + q1[2] * q1[2] + q1[3] * q1[3]
+    cos2 = min(1.0, dot * dot / (n0 * n1))
+    return 2.0 * np.sqrt(1.0 - cos2) * r * (1.0 + 1e-12) + 1e-15 * r
+
+
+@_inline
 def sphere_entry(ca0, ca1, ra, cb0, cb1, rb):
     """First t in [0, 1] at which two spheres with linearly moving centres touch, or -1.
 

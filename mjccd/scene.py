@@ -217,8 +217,8 @@ def _sort_by_entry(cand, m, entry):
 
 
 @_jit
-def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only,
-                timing, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws):
+def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs,
+                new_only, timing, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws):
     """One frame over all pairs.  Fills the per-pair arrays and ``counters``; returns (best pair, rows, iv, owner).
 
     ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
@@ -228,12 +228,15 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
     pair of each row; both are replaced by larger arrays when full, so use the
     returned ones and their first ``rows`` rows); otherwise only the frame's
     first contact is sought.  ``ws`` is the scratch from :func:`workspace`.
+    A pair whose relative motion over the frame (:func:`mjccd.filters.relative_sweep`)
+    stays below ``min_motion[k]`` is counted as cleared by the spheres.
     With ``new_only`` pairs already touching or overlapping at the start are
     counted but neither solved nor reported, so the first contact is the
     earliest new one.  Nothing is allocated unless a pair reaches the exact
     solver or ``iv`` fills up.
     """
     radii, p0, q0, p1, q1_raw, pairs = _borrow(radii), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1_raw), _borrow(pairs)
+    min_motion = _borrow(min_motion)
     cache_n, cache_kind, outcome, entry = _borrow(cache_n), _borrow(cache_kind), _borrow(outcome), _borrow(entry)
     times, points, normals, ticks, counters = _borrow(times), _borrow(points), _borrow(normals), _borrow(ticks), _borrow(counters)
     q1, rmax, S, den = _borrow(ws[0]), _borrow(ws[1]), _borrow(ws[2]), _borrow(ws[3])
@@ -258,6 +261,13 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
         times[k] = -1.0
         te = fl.sphere_entry((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), rmax[i],
                              (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]), rmax[j])
+        if te >= 0.0 and min_motion[k] > 0.0 and fl.relative_sweep(
+                (p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]),
+                (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3]), (q1_raw[i, 0], q1_raw[i, 1], q1_raw[i, 2], q1_raw[i, 3]),
+                rmax[i], (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]),
+                (q0[j, 0], q0[j, 1], q0[j, 2], q0[j, 3]), (q1_raw[j, 0], q1_raw[j, 1], q1_raw[j, 2], q1_raw[j, 3]),
+                rmax[j]) < min_motion[k]:
+            te = -1.0
         code = SPHERE
         if te >= 0.0:
             if not ready[i]:
@@ -341,8 +351,8 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, use_cache, cache_n, ca
 
 
 @_jit
-def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache_kind, all_pairs, new_only, timing,
-               best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks,
+def run_kernel(affine, radii, positions, quats, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only,
+               timing, best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks,
                entry, times, points, normals, iv, owner, ws):
     """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache.
 
@@ -354,6 +364,7 @@ def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache
     """
     radii, positions, quats, pairs, cache_n, cache_kind = (_borrow(radii), _borrow(positions), _borrow(quats),
                                                            _borrow(pairs), _borrow(cache_n), _borrow(cache_kind))
+    min_motion = _borrow(min_motion)
     counters, outcomes, ticks = _borrow(counters), _borrow(outcomes), _borrow(ticks)
     entry, times, points, normals = _borrow(entry), _borrow(times), _borrow(points), _borrow(normals)
     t_start = 0
@@ -361,7 +372,7 @@ def run_kernel(affine, radii, positions, quats, pairs, use_cache, cache_n, cache
         if timing:
             t_start = _ticks()
         k, _, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
-                                 use_cache, cache_n, cache_kind, all_pairs, new_only, timing, outcomes[f], entry, times,
+                                 min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only, timing, outcomes[f], entry, times,
                                  points, normals, ticks[f], counters[f], iv, owner, ws)
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
@@ -501,6 +512,9 @@ class Scene:
             raise ValueError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, got {arr[same[0]].tolist()}")
         self.pairs = np.ascontiguousarray(arr)
         self.plane_cache = bool(plane_cache)
+        # (P,) per pair: a relative motion over a frame below this counts as free (zero: every pair checked);
+        # the guard sets it so that slow pairs are left to MuJoCo's own contacts
+        self.min_motion = np.zeros(len(self.pairs))
         self.reset_cache()
         n, npairs = len(self.radii), len(self.pairs)
         # per-frame arrays of step and run, reused (results copy what they keep)
@@ -543,7 +557,8 @@ class Scene:
         self._poses(poses_t0, "poses_t0", p0, q0)
         self._poses(poses_t1, "poses_t1", p1, q1)
         best_k, niv, iv, owner = step_kernel(
-            self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.plane_cache, self._cache_n,
+            self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.min_motion, self.plane_cache,
+            self._cache_n,
             self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, points,
             normals, ticks, counters, iv, owner, ws)
         first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
@@ -585,8 +600,8 @@ class Scene:
                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
                         np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
         _, _, _, _, _, entry, times, points, normals, _, _, iv, owner, ws = self._buffers
-        run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.plane_cache,
-                   self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing), out.time, out.pair, out.point, out.normal,
-                   out.counters, out.outcomes, out.ticks, out.frame_ticks, entry, times, points, normals, iv, owner,
-                   ws)
+        run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.min_motion,
+                   self.plane_cache, self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing),
+                   out.time, out.pair, out.point, out.normal, out.counters, out.outcomes, out.ticks, out.frame_ticks,
+                   entry, times, points, normals, iv, owner, ws)
         return out

@@ -85,11 +85,17 @@ class GuardedStepper:
         overshoot: how far past the contact instant a clamp goes, as a fraction of the timestep
             (4x further for each repeated clamp of the same pair within one step).
         contact_step: length of the step taken right after a clamp, as a fraction of the timestep.
+        max_penetration: how deep one step may carry a pair into each other before the guard steps in,
+            as a fraction of the pair's thickness (the sum of the two smallest semi-axes).  A pair whose
+            relative motion within a step (any point, centre travel plus rotation sweep) stays below
+            that depth cannot pass through, so it is left to MuJoCo's own contacts, as Bullet leaves
+            bodies below its CCD motion threshold.  0 guards every new contact.  Rigid and affine
+            motions only; a chain guard checks every pair.
         on_clamp: called with each :class:`~mjccd.mujoco.StepContact` that causes a clamp.
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=32,
-                 overshoot=1e-3, contact_step=0.05, on_clamp=None):
+                 overshoot=1e-3, contact_step=0.05, max_penetration=0.25, on_clamp=None):
         self.monitor = CCDMonitor(model, data, ellipsoids, pairs=pairs, motion=motion,
                                   report_overlapping=False)
         self.max_rechecks = _positive(max_rechecks, "max_rechecks", integer=True, allow_zero=True)
@@ -99,6 +105,10 @@ class GuardedStepper:
         self.contact_step = _positive(contact_step, "contact_step")
         if self.contact_step > 1.0:
             raise ValueError(f"contact_step: expected a fraction of the timestep up to 1, got {contact_step!r}")
+        self.max_penetration = _positive(max_penetration, "max_penetration", allow_zero=True)
+        if self.max_penetration >= 1.0:
+            raise ValueError(f"max_penetration: expected a fraction of the pair's thickness below 1, "
+                             f"got {max_penetration!r}")
         if on_clamp is not None and not callable(on_clamp):
             raise ValueError("on_clamp: expected a callable or None")
         self.model, self.data, self.on_clamp = model, data, on_clamp
@@ -106,6 +116,10 @@ class GuardedStepper:
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
         # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
         self._fast = StepCheck(self.monitor) if self.monitor._scene is not None else None
+        if self._fast is not None:
+            thin = np.asarray(ellipsoids.radii, dtype=float).min(axis=1)
+            pairs = self.monitor.pairs
+            self._fast.min_motion[:] = self.max_penetration * (thin[pairs[:, 0]] + thin[pairs[:, 1]])
         self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
         self.last_report = None
         self.clamps_total = 0
@@ -256,20 +270,22 @@ class GuardedWrapper(DelegatingEnvironment):
     Args:
         env: a ``dm_control.rl.control.Environment``.
         ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
-        pairs, motion, max_rechecks, overshoot, contact_step, on_clamp: as in :class:`GuardedStepper`.
+        pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp: as in
+            :class:`GuardedStepper`.
 
     ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=32, overshoot=1e-3,
-                 contact_step=0.05, on_clamp=None, per="body"):
+                 contact_step=0.05, max_penetration=0.25, on_clamp=None, per="body"):
         super().__init__(env)
         physics = env.physics
         model = physics.model.ptr
         ellipsoids = fitted_or_checked(model, ellipsoids, per)
         self.stepper = GuardedStepper(model, physics.data.ptr, ellipsoids, pairs=pairs, motion=motion,
                                       max_rechecks=max_rechecks, overshoot=overshoot,
-                                      contact_step=contact_step, on_clamp=on_clamp)
+                                      contact_step=contact_step, max_penetration=max_penetration,
+                                      on_clamp=on_clamp)
         self.last_reports = []
 
     def reset(self):

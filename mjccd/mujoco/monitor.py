@@ -351,6 +351,7 @@ class StepCheck:
         self.rmax = np.ascontiguousarray(self.radii.max(axis=1))
         self.pairs = np.ascontiguousarray(monitor.pairs, dtype=np.int64)
         self.affine = monitor.motion == "affine"
+        self.min_motion = monitor._scene.min_motion  # shared with the exact check: one setting for both
 
     def _key_of(self, data):
         key = self._key
@@ -401,7 +402,7 @@ class StepCheck:
         self._end = idx
         xpos, xquat = self._xposes[idx]
         return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, self.radii, self.rmax,
-                                    slots[start][2], slots[idx][2], self.pairs, self.affine)
+                                    slots[start][2], slots[idx][2], self.pairs, self.min_motion, self.affine)
 
     @property
     def poses(self):
@@ -411,7 +412,7 @@ class StepCheck:
     def may_touch(self):
         """False when no pair can touch during the step (cheap and conservative)."""
         p0, p1 = self.poses
-        return pairs_may_touch(self.affine, self.radii, self.rmax, p0, p1, self.pairs)
+        return pairs_may_touch(self.affine, self.radii, self.rmax, p0, p1, self.pairs, self.min_motion)
 
     def first(self, times=None):
         """Earliest new contact (:class:`StepContact` or None) of the step: the exact batched check.
@@ -440,7 +441,7 @@ class StepCheck:
         scene._poses(p0, "poses_t0", q0_p, q0)
         scene._poses(p1, "poses_t1", q1_p, q1)
         k, _, _, _ = step_kernel(scene.motion == "affine", scene.radii, q0_p, q0, q1_p, q1, scene.pairs,
-                                 scene.plane_cache, scene._cache_n, scene._cache_kind, False, True, False, outcome,
+                                 scene.min_motion, scene.plane_cache, scene._cache_n, scene._cache_kind, False, True, False, outcome,
                                  entry, times, points, normals, ticks, counters, iv, owner, ws)
         if k < 0:
             return -1, None, None, None

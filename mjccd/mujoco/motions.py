@@ -6,6 +6,7 @@ import numba
 import numpy as np
 
 from mjccd import bernstein as bz
+from mjccd.filters import relative_sweep
 from mjccd.motion import Affine, Ball, Chain, Fixed, Free, Hinge, Rigid, Static, w_of_translation
 from mjccd.quadric import static_status_pose
 
@@ -221,8 +222,11 @@ def _in_contact_at_start(radii, p0, i, j):
 
 
 @numba.njit(cache=True, nogil=True)
-def pairs_may_touch(affine, radii, rmax, p0, p1, pairs):
+def pairs_may_touch(affine, radii, rmax, p0, p1, pairs, min_motion):
     """False only when no pair can make a new contact during the step (poses p0 -> p1, centres lerped).
+
+    A pair whose relative motion stays below ``min_motion[k]`` is left out, as
+    the exact check leaves it out (:func:`mjccd.filters.relative_sweep`).
 
     Per pair: the swept bounding spheres (radius = largest semi-axis), then
     planes normal to the centre line (at both ends) and to each ellipsoid's
@@ -235,6 +239,9 @@ def pairs_may_touch(affine, radii, rmax, p0, p1, pairs):
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
+        if min_motion[k] > 0.0 and relative_sweep(p0[i, :3], p1[i, :3], p0[i, 3:], p1[i, 3:], rmax[i],
+                                                  p0[j, :3], p1[j, :3], p0[j, 3:], p1[j, 3:], rmax[j]) < min_motion[k]:
+            continue
         scale = rmax[i] + rmax[j]
         tol = 1e-9 * scale
         # swept spheres: |d0 + t v| > reach on [0, 1]
@@ -428,8 +435,8 @@ def sweep_sphere(motion):
 
 
 @numba.njit(cache=True, nogil=True)
-def poses_then_may_touch(xpos, xquat, body_ids, local, radii, rmax, p0, p1, pairs, affine):
+def poses_then_may_touch(xpos, xquat, body_ids, local, radii, rmax, p0, p1, pairs, min_motion, affine):
     """:func:`ellipsoid_poses_into` for the end poses ``p1`` (``local`` = [positions, quaternions]),
     then :func:`pairs_may_touch` from ``p0``: the compiled part of a step check in one call."""
     ellipsoid_poses_into(xpos, xquat, body_ids, local[:, :3], local[:, 3:], p1)
-    return pairs_may_touch(affine, radii, rmax, p0, p1, pairs)
+    return pairs_may_touch(affine, radii, rmax, p0, p1, pairs, min_motion)

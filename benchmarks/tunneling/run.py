@@ -42,16 +42,17 @@ def simulate(cls, dt, speed, mode, seed):
     guard = GuardedStepper(m, d, sc.ellipsoids(), pairs=sc.pairs) if mode == "guarded" else None
     steps = int(round(sc.duration / m.opt.timestep))
     tunneled = False
-    t0 = time.perf_counter()
+    elapsed = 0.0
     for _ in range(steps):
+        t0 = time.perf_counter()  # the controller and the step are timed, the tunneling test is not
         sc.control(d)
         if guard is None:
             mujoco.mj_step(m, d)
         else:
             guard.step()
+        elapsed += time.perf_counter() - t0
         tunneled = tunneled or sc.tunneled(d)
-    cost = (time.perf_counter() - t0) / sc.duration
-    return tunneled, cost, 0 if guard is None else guard.clamps_total
+    return tunneled, elapsed / sc.duration, 0 if guard is None else guard.clamps_total
 
 
 def table(runs, cases):

@@ -289,3 +289,16 @@ def test_fused_kernel_matches_the_general_path():
                 assert np.allclose(point, want.point, atol=1e-9)
                 assert np.allclose(normal, want.normal, atol=1e-9)
                 assert np.array_equal(api.point, point)
+
+
+def test_rows_at_equals_row_by_row_evaluation():
+    from mjccd import bernstein as bz
+    from mjccd.ccd import _rows_at
+
+    rng = np.random.default_rng(5)
+    for degree in (0, 6, 18, 40, 60):
+        F = rng.normal(size=(5, degree + 1))
+        for t in (0.0, 1e-9, 0.3, 0.5, 0.73, 1.0 - 1e-9, 1.0):
+            got = _rows_at(F, t)
+            for i in range(5):
+                assert got[i] == pytest.approx(bz.evaluate_row(F, i, t), rel=1e-12, abs=1e-12)

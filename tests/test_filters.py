@@ -232,3 +232,36 @@ def test_witness_on_a_grazing_pass(eps):
                                   mjccd.Rigid(pb0, ID, pb1, ID))
     assert (contact is None) == (eps > 0)
     assert not (free and contact is not None)
+
+
+@pytest.mark.parametrize("affine", [False, True])
+def test_relative_sweep_bounds_every_point(affine):
+    """No point of b moves further relative to any point of a than relative_sweep says, between any two times."""
+    from mjccd.filters import relative_sweep
+
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        radii = rng.uniform(0.1, 1.0, (2, 3))
+        c0, c1 = rng.normal(size=(2, 3)), rng.normal(size=(2, 3))
+        q0, q1 = rng.normal(size=(2, 4)), rng.normal(size=(2, 4))
+        q0 /= np.linalg.norm(q0, axis=1, keepdims=True)
+        q1 /= np.linalg.norm(q1, axis=1, keepdims=True)
+        q1 *= np.sign(np.sum(q0 * q1, axis=1))[:, None]
+        bound = relative_sweep(c0[0], c1[0], q0[0], q1[0], radii[0].max(), c0[1], c1[1], q0[1], q1[1],
+                               radii[1].max())
+
+        def point(body, y, t):
+            if affine:
+                shape = (1 - t) * quat_to_matrix(q0[body]) + t * quat_to_matrix(q1[body])
+            else:
+                q = (1 - t) * q0[body] + t * q1[body]
+                shape = quat_to_matrix(q / np.linalg.norm(q))
+            return (1 - t) * c0[body] + t * c1[body] + shape @ (radii[body] * y)
+
+        for _ in range(20):
+            ya, yb = rng.normal(size=(2, 3))
+            ya /= np.linalg.norm(ya)
+            yb /= np.linalg.norm(yb)
+            s, t = np.sort(rng.uniform(0, 1, 2))
+            moved = (point(1, yb, t) - point(0, ya, t)) - (point(1, yb, s) - point(0, ya, s))
+            assert np.linalg.norm(moved) <= bound * (1 + 1e-12)

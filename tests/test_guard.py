@@ -148,6 +148,31 @@ def test_clamp_reports_contact():
     assert abs(c.point[0] + WALL_HALF) < 1e-6
 
 
+@pytest.mark.parametrize("max_penetration,clamped", [(0.0, True), (0.25, False)])
+def test_slow_contact_is_left_to_mujoco(max_penetration, clamped):
+    """A ball approaching at 5 mm per step touches the wall: below a quarter of the pair's thickness (3 cm) it
+    is MuJoCo's contact; with max_penetration 0 the guard clamps it."""
+    dt = 0.002
+    model = wall_model(dt, x0=-(WALL_HALF + BALL) - 0.004)
+    data = thrown(model, 2.5)
+    guard = GuardedStepper(model, data, fit_model(model), max_penetration=max_penetration)
+    for _ in range(5):
+        guard.step()
+        assert not inside_wall(data.qpos)
+    assert (guard.clamps_total > 0) == clamped
+    assert data.qvel[0] <= 0.0  # stopped by MuJoCo's contact either way
+
+
+def test_fast_contact_is_clamped_whatever_max_penetration():
+    model = wall_model(0.01)
+    data = thrown(model, 100.0)
+    guard = GuardedStepper(model, data, fit_model(model), max_penetration=0.9)
+    for _ in range(10):
+        guard.step()
+        assert not inside_wall(data.qpos)
+    assert guard.clamps_total >= 1
+
+
 def test_bad_arguments():
     model = wall_model(0.002)
     data = mujoco.MjData(model)
@@ -158,6 +183,10 @@ def test_bad_arguments():
         GuardedStepper(model, data, ell, overshoot=2.0)
     with pytest.raises(ValueError, match="contact_step"):
         GuardedStepper(model, data, ell, contact_step=0.0)
+    with pytest.raises(ValueError, match="max_penetration: expected a fraction of the pair's thickness below 1"):
+        GuardedStepper(model, data, ell, max_penetration=1.0)
+    with pytest.raises(ValueError, match="max_penetration: expected a finite number >= 0"):
+        GuardedStepper(model, data, ell, max_penetration=float("nan"))
     with pytest.raises(ValueError, match="nstep"):
         GuardedStepper(model, data, ell).step(0)
     with pytest.raises(ValueError, match="pairs"):

@@ -104,3 +104,30 @@ def test_bad_batch_input():
     bad[1, 3] = 0.0
     with pytest.raises(ValueError, match=r"poses_b\[1\]: zero quaternion"):
         mjccd.static_status_many(np.ones((2, 3)), poses, np.ones((2, 3)), bad)
+
+
+def test_quartic_max_against_dense_sampling():
+    """Maximum and argmax of random Bernstein quartics, including nearly flat ones, against a fine grid."""
+    from mjccd.quadric import quartic_max5
+
+    rng = np.random.default_rng(3)
+    u = np.linspace(0.0, 1.0, 200001)
+    basis = np.stack([(1 - u) ** 4, 4 * u * (1 - u) ** 3, 6 * u ** 2 * (1 - u) ** 2, 4 * u ** 3 * (1 - u), u ** 4])
+    for k in range(300):
+        g = rng.normal(size=5) * (1e-6 if k % 10 == 0 else 1.0)
+        values = g @ basis
+        best, at = quartic_max5(*g)
+        assert best >= values.max() - 1e-12 * np.abs(g).max()
+        assert abs((g @ np.array([(1 - at) ** 4, 4 * at * (1 - at) ** 3, 6 * at ** 2 * (1 - at) ** 2,
+                                   4 * at ** 3 * (1 - at), at ** 4])) - best) <= 1e-14 * np.abs(g).max()
+
+
+def test_null_vector_spans_the_kernel():
+    from mjccd.quadric import null_vector
+
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        V, _ = np.linalg.qr(rng.normal(size=(4, 4)))
+        M = V @ np.diag([*rng.uniform(0.5, 2.0, 3) * rng.choice([-1, 1], 3), 0.0]) @ V.T
+        X = null_vector(M)
+        assert abs(abs(X @ V[:, 3]) / np.linalg.norm(X) - 1.0) < 1e-12

@@ -177,6 +177,25 @@ def test_new_contacts_only_skips_pairs_overlapping_at_start():
     assert full.contacts[1].time == pytest.approx(6 / 7, abs=1e-12)
 
 
+def test_min_motion_leaves_out_slow_pairs_only():
+    """Pair 1 closes 4 units (first touch at 1/4), pair 2 closes 3.5 (touch at 6/7): a min_motion of 3.75
+    leaves out pair 2 alone, so pair 1 stays the first contact and pair 2 no longer reports one."""
+    radii = np.full((6, 3), 0.5)
+    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0],
+                   [10, 0, 0, 1, 0, 0, 0], [12, 0, 0, 1, 0, 0, 0],
+                   [20, 0, 0, 1, 0, 0, 0], [24, 0, 0, 1, 0, 0, 0]], float)
+    p1 = p0.copy()
+    p1[3, 0] = 8.0
+    p1[5, 0] = 20.5
+    scene = Scene(radii, pairs=[[0, 1], [2, 3], [4, 5]])
+    scene.min_motion[:] = 3.75
+    full = scene.step(p0, p1, all_pairs=True, new_contacts_only=True)
+    assert [c.pair for c in full.contacts] == [1]
+    assert full.first.time == pytest.approx(0.25, abs=1e-12)
+    scene.min_motion[:] = 0.0
+    assert [c.pair for c in scene.step(p0, p1, all_pairs=True, new_contacts_only=True).contacts] == [1, 2]
+
+
 def test_pair_helpers():
     assert pairs_between([0, 1], [2, 3, 4]).tolist() == [[0, 2], [0, 3], [0, 4], [1, 2], [1, 3], [1, 4]]
     assert non_adjacent_pairs(4, [[0, 1], [2, 1], [2, 3]]).tolist() == [[0, 2], [0, 3], [1, 3]]

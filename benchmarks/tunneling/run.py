@@ -76,7 +76,8 @@ def table(runs, cases):
 def markdown(rows, costs, runs, command, elapsed):
     head = ["scenario", "dt (ms)", "speed (m/s)"] + list(MODES)
     lines = ["# Tunneling benchmarks", "",
-             "Each cell: runs that tunneled / runs · median CPU milliseconds per simulated second.",
+             "Each cell: runs that tunneled / runs · median CPU milliseconds per simulated second "
+             "(the controller and the step are timed, the tunneling test is not).",
              f"{runs} runs per cell with jittered start (position and speed ±10 %). "
              "`dt/k` is plain MuJoCo with the timestep divided by k; `guarded` is "
              "`mjccd.mujoco.guard.GuardedStepper` at the scenario timestep.",

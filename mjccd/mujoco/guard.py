@@ -120,11 +120,9 @@ class GuardedStepper:
             thin = np.asarray(ellipsoids.radii, dtype=float).min(axis=1)
             pairs = self.monitor.pairs
             self._fast.min_motion[:] = self.max_penetration * (thin[pairs[:, 0]] + thin[pairs[:, 1]])
-            # the first step's setup, done here: both private datas filled once (their memory touched) and
-            # the current poses recorded, so the first step costs what every other step costs
-            for _ in range(2):
-                self._fast.begin(data)
-                self._fast.end_may_touch(data)
+            # the first step's setup, done here: the current poses recorded, so the first step costs what
+            # every other step costs
+            self._fast.begin(data)
         self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
         self.last_report = None
         self.clamps_total = 0

@@ -340,6 +340,8 @@ class StepCheck:
         self._key = np.empty(size)
         # slot: [private data, key bytes of its state (None: empty), poses]
         self._slots = [[mujoco.MjData(m), None, np.empty((n, 7))] for _ in range(2)]
+        for slot in self._slots:  # touch each private data's memory once, here rather than in a first step
+            mujoco.mj_kinematics(m, slot[0])
         # the body poses of each private data (MjData arrays are views of its own memory: fetched once)
         self._xposes = [(slot[0].xpos, slot[0].xquat) for slot in self._slots]
         self._start = self._end = 0

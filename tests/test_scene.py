@@ -158,16 +158,21 @@ def test_step_reads_poses_of_any_layout():
     assert ref.contacts
 
 
-def test_new_contacts_only_skips_pairs_overlapping_at_start():
-    """Pair 0 overlaps from the start; pair 1 first touches at t = 0.25; pair 2 later, at 6/7."""
-    radii = np.full((6, 3), 0.5)
+def three_pairs():
+    """Unit spheres in three pairs over one frame: pair 0 overlaps from the start; pair 1 closes 4 units and
+    first touches at t = 0.25; pair 2 closes 3.5 units and touches at 6/7.  Returns (scene, poses_t0, poses_t1)."""
     p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0],
                    [10, 0, 0, 1, 0, 0, 0], [12, 0, 0, 1, 0, 0, 0],
                    [20, 0, 0, 1, 0, 0, 0], [24, 0, 0, 1, 0, 0, 0]], float)
     p1 = p0.copy()
     p1[3, 0] = 8.0
     p1[5, 0] = 20.5
-    scene = Scene(radii, pairs=[[0, 1], [2, 3], [4, 5]])
+    return Scene(np.full((6, 3), 0.5), pairs=[[0, 1], [2, 3], [4, 5]]), p0, p1
+
+
+def test_new_contacts_only_skips_pairs_overlapping_at_start():
+    """See :func:`three_pairs`: the overlap at the start is left out, pair 1 comes first, pair 2 at 6/7."""
+    scene, p0, p1 = three_pairs()
     assert scene.step(p0, p1).first.time == 0.0
     res = scene.step(p0, p1, new_contacts_only=True)
     assert res.first.pair == 1 and res.first.time == pytest.approx(0.25, abs=1e-12)
@@ -178,16 +183,9 @@ def test_new_contacts_only_skips_pairs_overlapping_at_start():
 
 
 def test_min_motion_leaves_out_slow_pairs_only():
-    """Pair 1 closes 4 units (first touch at 1/4), pair 2 closes 3.5 (touch at 6/7): a min_motion of 3.75
-    leaves out pair 2 alone, so pair 1 stays the first contact and pair 2 no longer reports one."""
-    radii = np.full((6, 3), 0.5)
-    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0],
-                   [10, 0, 0, 1, 0, 0, 0], [12, 0, 0, 1, 0, 0, 0],
-                   [20, 0, 0, 1, 0, 0, 0], [24, 0, 0, 1, 0, 0, 0]], float)
-    p1 = p0.copy()
-    p1[3, 0] = 8.0
-    p1[5, 0] = 20.5
-    scene = Scene(radii, pairs=[[0, 1], [2, 3], [4, 5]])
+    """A min_motion of 3.75 leaves out pair 2 (closing 3.5) alone: pair 1 (closing 4) stays the first
+    contact and pair 2 no longer reports one."""
+    scene, p0, p1 = three_pairs()
     scene.min_motion[:] = 3.75
     full = scene.step(p0, p1, all_pairs=True, new_contacts_only=True)
     assert [c.pair for c in full.contacts] == [1]

@@ -233,8 +233,8 @@ def swing(omega, angle, guarded, dt=1 / 120):
         else:
             guard.step()
         seen = seen or data.ncon > 0
-        tip = data.geom_xpos[model.geom("arm").id]
-        passed = passed or (not seen and angle < np.arctan2(tip[1], tip[0]) < angle + 1.5)
+        centre = data.geom_xpos[model.geom("arm").id]
+        passed = passed or (not seen and angle < np.arctan2(centre[1], centre[0]) < angle + 1.5)
     return passed, data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
 
 

@@ -176,10 +176,7 @@ class GuardedStepper:
             else:
                 full_step()
             if not fast.end_may_touch(d):
-                dt = m.opt.timestep
-                report = self._plain.get(dt)
-                if report is None:
-                    report = self._plain_report(dt)
+                report = self._plain_report(m.opt.timestep)
                 self.last_report = report
                 return report
             hit = fast.first((float(self._state0[0]), float(d.time)))
@@ -192,14 +189,16 @@ class GuardedStepper:
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = m.opt.timestep
-            report = GuardReport((float(dt),), (), 0, True) if hit is not None else (
-                self._plain.get(dt) or self._plain_report(dt))
+            report = GuardReport((float(dt),), (), 0, True) if hit is not None else self._plain_report(dt)
             self.last_report = report
             return report
         return self._clamped(hit, finish)
 
     def _plain_report(self, dt):
-        report = self._plain[dt] = GuardReport((float(dt),), (), 0, False)
+        """The shared report of an unclamped step of ``dt`` seconds."""
+        report = self._plain.get(dt)
+        if report is None:
+            report = self._plain[dt] = GuardReport((float(dt),), (), 0, False)
         return report
 
     def _clamped(self, hit, finish):

@@ -56,24 +56,6 @@ def as_state(model, value, field, mocap_from=None):
     return state
 
 
-def quat_mul(a, b):
-    """Row-wise quaternion products (..., 4) [w, x, y, z]."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz_ = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz_,
-                     aw * bx + ax * bw + ay * bz_ - az * by,
-                     aw * by - ax * bz_ + ay * bw + az * bx,
-                     aw * bz_ + ax * by - ay * bx + az * bw], axis=-1)
-
-
-def quat_rotate(q, v):
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4)."""
-    w = q[..., :1]
-    u = q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
 class Kinematics:
     """Forward kinematics of states on a private ``MjData`` (the user's data is never touched)."""
 

@@ -252,6 +252,71 @@ def test_guard_stops_a_fast_swing_and_stays_stable():
     assert not any(u for _, u in plain + guarded)
 
 
+def test_a_step_mujoco_resets_is_kept_and_not_checked():
+    # the ball sits beyond the wall; a NaN force makes MuJoCo reset it to its start pose in front of the
+    # wall: that jump crosses the wall but is no motion, so the guard keeps the step exactly as plain
+    # MuJoCo leaves it
+    model = wall_model(0.005)
+    datas = []
+    for _ in range(2):
+        data = thrown(model, 2.0)
+        data.qpos[0] = 0.3
+        mujoco.mj_forward(model, data)
+        data.qfrc_applied[0] = np.nan
+        datas.append(data)
+    plain, guarded = datas
+    guard = GuardedStepper(model, guarded, fit_model(model))
+    mujoco.mj_step(model, plain)
+    report = guard.step()
+    assert report.unstable and report.clamps == () and report.rollbacks == 0 and report.substeps == (0.005,)
+    assert guarded.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 1
+    assert guarded.qpos[0] == -0.5
+    assert np.array_equal(full_state(model, plain), full_state(model, guarded))
+    assert not guard.step().unstable  # the next step is an ordinary one
+
+
+@pytest.fixture
+def poison_short_steps():
+    """Installs a control callback that makes the first MuJoCo step shorter than ``dt`` meet a NaN force."""
+    poisoned = []
+
+    def poison(model, data, dt):
+        if model.opt.timestep < dt and not poisoned:
+            poisoned.append(data.time)
+            data.qfrc_applied[0] = np.nan
+
+    yield lambda dt: mujoco.set_mjcb_control(lambda model, data: poison(model, data, dt))
+    mujoco.set_mjcb_control(None)
+
+
+def test_a_piece_mujoco_resets_ends_the_step(poison_short_steps):
+    # the trial step (5 ms) is sound and finds the wall; the clamp step, shorter, meets a bad acceleration
+    model = wall_model(0.005)
+    data = thrown(model, 120.0)
+    guard = GuardedStepper(model, data, fit_model(model))
+    poison_short_steps(0.005)
+    reports = [guard.step() for _ in range(20)]
+    unstable = [r for r in reports if r.unstable]
+    assert len(unstable) == 1
+    report = unstable[0]
+    assert report.rollbacks == 1 and len(report.clamps) == 1 and len(report.substeps) == 1
+    assert 0.0 < report.substeps[0] < 0.005
+    assert model.opt.timestep == 0.005
+    assert data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 1
+    assert reports[-1].substeps == (0.005,) and data.qpos[0] == -0.5  # reset, then at rest
+
+
+def test_autoreset_off_unstable_steps_are_reported_not_checked():
+    model = wall_model(0.005)
+    model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    data = thrown(model, 2.0)
+    guard = GuardedStepper(model, data, fit_model(model))
+    data.qfrc_applied[0] = np.nan
+    reports = [guard.step() for _ in range(3)]
+    assert all(r.unstable and r.clamps == () for r in reports)
+    assert np.isnan(data.qpos[0])
+
+
 # ------------------------------------------------------------ dm-control
 
 
@@ -298,6 +363,17 @@ def test_dm_control_wrapper_without_contact_is_identical():
     pm, pd = plain.physics.model.ptr, plain.physics.data.ptr
     wm, wd = wrapped.physics.model.ptr, wrapped.physics.data.ptr
     assert np.array_equal(full_state(pm, pd), full_state(wm, wd))
+
+
+def test_dm_control_wrapper_raises_physics_error_like_dm_control(poison_short_steps):
+    from dm_control.rl.control import PhysicsError
+
+    wrapped = GuardedWrapper(_env(150.0))
+    wrapped.reset()
+    poison_short_steps(0.004)
+    with pytest.raises(PhysicsError, match="BADQACC"):
+        for _ in range(5):
+            wrapped.step(np.zeros(1))
 
 
 def test_clamp_goes_to_entry_not_exit():

@@ -19,7 +19,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from scenarios import ROOT, Boxing, Cup, Wall  # noqa: E402
 
 from mjccd.bench.report import write_section  # noqa: E402
-from mjccd.mujoco.guard import GuardedStepper  # noqa: E402
+from mjccd.mujoco.guard import BAD_STATE_WARNINGS, GuardedStepper  # noqa: E402
 
 MODES = ("plain", "dt/2", "dt/5", "dt/10", "guarded")
 CASES = [
@@ -35,8 +35,9 @@ CASES = [
 def simulate(cls, dt, speed, mode, seed):
     """(tunneled, seconds of CPU per simulated second, clamps, unstable) of one run.
 
-    ``unstable``: MuJoCo met a NaN, infinite or huge acceleration and reset the data (its bad-QACC
-    warning); the rest of such a run simulates the start pose, so "not tunneled" means nothing there.
+    ``unstable``: MuJoCo met a NaN, infinite or huge position, velocity or acceleration and reset the
+    data (its bad-state warnings); the rest of such a run simulates the start pose, so "not tunneled"
+    means nothing there.
     """
     div = {"plain": 1, "dt/2": 2, "dt/5": 5, "dt/10": 10, "guarded": 1}[mode]
     sc = cls(dt / div, speed=speed)
@@ -56,7 +57,7 @@ def simulate(cls, dt, speed, mode, seed):
             guard.step()
         elapsed += time.perf_counter() - t0
         tunneled = tunneled or sc.tunneled(d)
-    unstable = d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+    unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
     return tunneled, elapsed / sc.duration, 0 if guard is None else guard.clamps_total, unstable
 
 
@@ -73,7 +74,11 @@ def table(runs, cases):
                 cost = np.median([r[1] for r in res]) * 1e3
                 unstable = sum(r[3] for r in res)
                 costs[cls.name, dt, speed, mode] = cost
-                row.append(f"{tun}/{runs} · {cost:.3g}" + (f" · **{unstable} unstable**" if unstable else ""))
+                cell = f"{tun}/{runs} · {cost:.3g}"
+                if mode == "guarded":
+                    clamps = np.median([r[2] for r in res])
+                    cell += f" · {clamps:g} clamp" + ("" if clamps == 1 else "s")
+                row.append(cell + (f" · **{unstable} unstable**" if unstable else ""))
             rows.append(row)
             print(" | ".join(row), flush=True)
     return rows, costs
@@ -84,15 +89,20 @@ def markdown(rows, costs, runs, command, elapsed):
     lines = ["# Tunneling benchmarks", "",
              "Each cell: runs that tunneled / runs · median CPU milliseconds per simulated second "
              "(the controller and the step are timed, the tunneling test is not). "
-             "\"k unstable\": in k runs MuJoCo met a NaN, infinite or huge acceleration and reset the "
-             "simulation (its bad-QACC warning); such a run did not tunnel only because it restarted.",
+             "\"k unstable\": in k runs MuJoCo met a NaN, infinite or huge position, velocity or acceleration "
+             "and reset the simulation (its bad-state warnings); such a run did not tunnel only because it "
+             "restarted.",
              f"{runs} runs per cell with jittered start (position and speed ±10 %). "
              "`dt/k` is plain MuJoCo with the timestep divided by k; `guarded` is "
-             "`mjccd.mujoco.guard.GuardedStepper` at the scenario timestep.",
-             "Scenarios (`benchmarks/tunneling/scenarios.py`): `wall` a 2 cm ball thrown at a 2 cm ellipsoid "
-             "wall (tunneled: the ball centre ever beyond the wall's mid-plane); `cup` three balls in a closed "
+             "`mjccd.mujoco.guard.GuardedStepper` at the scenario timestep, with the median number of "
+             "clamps per run.",
+             "Scenarios (`benchmarks/tunneling/scenarios.py`; simulated time per run in brackets): "
+             f"`wall` ({Wall.duration:g} s) a 2 cm ball thrown at a 2 cm ellipsoid "
+             "wall (tunneled: the ball centre ever beyond the wall's mid-plane); "
+             f"`cup` ({Cup.duration:g} s) three balls in a closed "
              "thin-walled cup (floor, four walls and a lid, ellipsoids overlapping at every edge) jerked "
-             "sideways for 30 ms (tunneled: a ball centre outside the cup); `boxing` "
+             "sideways for 30 ms (tunneled: a ball centre outside the cup); "
+             f"`boxing` ({Boxing.duration:g} s) "
              "a's right arm swung about the shoulder through b's head in models/boxing.xml, arm and head "
              "colliding through their bounding ellipsoids, integrated with MuJoCo's implicit integrator (with the "
              "default Euler the guarded runs at 20 and 60 m/s diverged; see guarded-stepping.md) (tunneled: "

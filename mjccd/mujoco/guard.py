@@ -10,6 +10,11 @@ from mjccd.mujoco.motions import capture
 from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+# MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
+# autoreset is disabled) resets the data inside the step
+BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                      mujoco.mjtWarning.mjWARN_BADQACC)
+UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
 
 
 @dataclass(frozen=True, eq=False)
@@ -22,12 +27,18 @@ class GuardReport:
         clamps: the :class:`~mjccd.mujoco.StepContact` that caused each clamp, in order.
         rollbacks: how many trial steps were thrown away and redone with a shorter timestep.
         exhausted: True when ``max_rechecks`` clamps were spent and the rest of the step ran unguarded.
+        unstable: True when MuJoCo met a bad position, velocity or acceleration in one of the step's
+            MuJoCo steps (its ``mjWARN_BADQPOS``/``QVEL``/``QACC`` warnings) and, unless autoreset is
+            disabled, reset the data.  That MuJoCo step is kept as MuJoCo left it and not checked (a jump
+            back to the reset pose is no motion), and the step ends there, so ``substeps`` may sum to
+            less than the timestep.
     """
 
     substeps: tuple
     clamps: tuple
     rollbacks: int
     exhausted: bool
+    unstable: bool = False
 
 
 def geom_ellipsoids(model, group=5):
@@ -72,7 +83,9 @@ class GuardedStepper:
     the timestep, where the contact removes most of the approach speed) and
     then the rest of the step, every piece checked again.  At most
     ``max_rechecks`` clamps per step; after that the remaining time is one
-    unguarded MuJoCo step (reported as ``exhausted``).  Everything is
+    unguarded MuJoCo step (reported as ``exhausted``).  A MuJoCo step in
+    which MuJoCo meets a bad state (and resets the data) is kept as it is and
+    ends the guarded step (reported as ``unstable``).  Everything is
     deterministic.
 
     Args:
@@ -124,6 +137,7 @@ class GuardedStepper:
             # every other step costs
             self._fast.begin(data)
         self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
+        self._warnings_of, self._warnings = None, ()
         self.last_report = None
         self.clamps_total = 0
 
@@ -168,6 +182,7 @@ class GuardedStepper:
         """
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
+        bad = self._bad_state_count()
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
             fast.begin(d)
@@ -175,6 +190,8 @@ class GuardedStepper:
                 mujoco.mj_step(m, d)
             else:
                 full_step()
+            if self._went_bad(bad):
+                return self._unstable_trial(m.opt.timestep)
             if not fast.end_may_touch(d):
                 report = self._plain_report(m.opt.timestep)
                 self.last_report = report
@@ -186,13 +203,38 @@ class GuardedStepper:
                 mujoco.mj_step(m, d)
             else:
                 full_step()
+            if self._went_bad(bad):
+                return self._unstable_trial(m.opt.timestep)
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = m.opt.timestep
             report = GuardReport((float(dt),), (), 0, True) if hit is not None else self._plain_report(dt)
             self.last_report = report
             return report
-        return self._clamped(hit, finish)
+        return self._clamped(hit, bad, finish)
+
+    def _bad_state_count(self):
+        """How many bad-state warnings MuJoCo has raised on the current data (views fetched once per data)."""
+        d = self.data
+        if self._warnings_of is not d:
+            self._warnings_of = d
+            self._warnings = tuple(d.warning[int(w)] for w in BAD_STATE_WARNINGS)
+        qpos, qvel, qacc = self._warnings
+        return qpos.number + qvel.number + qacc.number
+
+    def _went_bad(self, bad):
+        """True when the MuJoCo step just taken (from the saved state) met a bad state.
+
+        ``bad``: the warning count before it.  A reset clears the counts and then counts its own
+        warning, so a repeated reset can leave the sum as it was; it also sets the time back to 0,
+        so the step then ends no later than it began.
+        """
+        return self._bad_state_count() != bad or self.data.time <= self._state0[0]
+
+    def _unstable_trial(self, dt):
+        """The report of a step whose trial MuJoCo found unstable (and reset): kept as it is, unchecked."""
+        self.last_report = GuardReport((float(dt),), (), 0, False, unstable=True)
+        return self.last_report
 
     def _plain_report(self, dt):
         """The shared report of an unclamped step of ``dt`` seconds."""
@@ -201,13 +243,16 @@ class GuardedStepper:
             report = self._plain[dt] = GuardReport((float(dt),), (), 0, False)
         return report
 
-    def _clamped(self, hit, finish):
-        """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece."""
+    def _clamped(self, hit, bad, finish):
+        """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece.
+
+        ``bad``: MuJoCo's bad-state warning count before the step; a piece that raises it ends the step.
+        """
         m, d = self.model, self.data
         dt = float(m.opt.timestep)
         remaining = length = dt
         substeps, clamps = [], []
-        exhausted = False
+        exhausted = unstable = False
         rollbacks = 0
         try:
             while True:
@@ -225,9 +270,16 @@ class GuardedStepper:
                         m.opt.timestep = h
                         mujoco.mj_step(m, d)
                         substeps.append(h)
+                        if self._went_bad(bad):
+                            unstable = True
+                            break
                         remaining -= h
                         length = min(remaining, self.contact_step * dt)
                         hit = self._piece(length, False)
+                        if hit is UNSTABLE:
+                            substeps.append(length)
+                            unstable = True
+                            break
                         continue
                 elif hit is not None:
                     exhausted = True
@@ -237,12 +289,16 @@ class GuardedStepper:
                 remaining -= length
                 length = remaining
                 hit = self._piece(length, True)
+                if hit is UNSTABLE:
+                    substeps.append(length)
+                    unstable = True
+                    break
         finally:
             m.opt.timestep = dt
         if rollbacks and finish is not None:
             finish()
         self.clamps_total += len(clamps)
-        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted)
+        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted, unstable)
         if self.on_clamp is not None:
             for c in clamps:
                 self.on_clamp(c)
@@ -253,6 +309,7 @@ class GuardedStepper:
 
         ``follows``: the data is still the end state of the piece checked last (nothing was rolled back
         or stepped since), so the lean check reuses its poses without reading the state again.
+        Returns the earliest new contact, None, or ``UNSTABLE`` when MuJoCo found the step unstable.
         """
         m, d = self.model, self.data
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
@@ -261,8 +318,11 @@ class GuardedStepper:
             start = None
         else:
             start = self._begin(d)
+        bad = self._bad_state_count()
         m.opt.timestep = length
         mujoco.mj_step(m, d)
+        if self._went_bad(bad):
+            return UNSTABLE
         return self._hit(d, start)
 
 
@@ -275,7 +335,9 @@ class GuardedWrapper(DelegatingEnvironment):
         pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp: as in
             :class:`GuardedStepper`.
 
-    ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.
+    ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.  As with
+    dm-control's own stepping, a MuJoCo warning raised in any piece of a guarded step raises
+    ``PhysicsError`` (unless the physics suppresses errors).
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=32, overshoot=1e-3,
@@ -308,7 +370,10 @@ class GuardedWrapper(DelegatingEnvironment):
 
         def guarded(nstep=1):
             for _ in range(int(nstep)):
-                reports.append(stepper.guarded_step(lambda: original(1), finish))
+                # as dm-control's own step: a MuJoCo warning raised in any piece of a step is a PhysicsError
+                # (one context per step: the trial's own check shares the physics' warning snapshot)
+                with physics.check_invalid_state():
+                    reports.append(stepper.guarded_step(lambda: original(1), finish))
 
         physics.step = guarded
         try:

@@ -123,6 +123,28 @@ def test_rollback_leaves_no_stale_state():
     assert guarded.act[0] != 0.0 and np.any(guarded.qacc_warmstart != 0.0)
 
 
+def test_start_poses_are_read_off_the_saved_state():
+    # without mocap bodies the guard takes the step start's positions from the state it saved for a
+    # rollback; with one it reads the kinematic state (positions and mocap poses) itself
+    from mjccd.mujoco.guard import STATE_SPEC
+
+    plain_xml = WALL.format(dt=0.004, half=WALL_HALF, r=BALL, x0=-0.5)
+    mocap_xml = plain_xml.replace("<worldbody>", '<worldbody><body name="marker" mocap="true" pos="0 2 0"/>')
+    for xml, reads_saved in ((plain_xml, True), (mocap_xml, False)):
+        model = mujoco.MjModel.from_xml_string(xml)
+        data = thrown(model, 150.0)
+        guard = GuardedStepper(model, data, fit_model(model))
+        assert (guard._qpos0 is not None) == reads_saved
+        for _ in range(20):
+            data.mocap_pos[:] += 0.01
+            guard.step()
+            assert not inside_wall(data.qpos)
+        assert guard.clamps_total >= 1
+        if reads_saved:
+            mujoco.mj_getState(model, data, guard._state0, STATE_SPEC)
+            assert guard._qpos0.tobytes() == guard._fast._key_of(data)
+
+
 def test_max_rechecks_zero_only_reports():
     model = wall_model(0.002)
     data = thrown(model, 200.0)

@@ -14,6 +14,7 @@ STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 # autoreset is disabled) resets the data inside the step
 BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                       mujoco.mjtWarning.mjWARN_BADQACC)
+BAD_QPOS, BAD_QVEL, BAD_QACC = (int(w) for w in BAD_STATE_WARNINGS)
 UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
 
 
@@ -127,6 +128,9 @@ class GuardedStepper:
         self.model, self.data, self.on_clamp = model, data, on_clamp
         self.ellipsoids, self.motion = ellipsoids, motion
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
+        # without mocap bodies the kinematic state is the positions, which follow the time in the full state
+        self._qpos0 = self._state0[1:1 + model.nq] if model.nmocap == 0 else None
+        self._opt = model.opt
         # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
         self._fast = StepCheck(self.monitor) if self.monitor._scene is not None else None
         if self._fast is not None:
@@ -157,8 +161,9 @@ class GuardedStepper:
     # ------------------------------------------------------------ checks
 
     def _begin(self, d):
+        """Record the start of a piece whose state was just saved into ``_state0``."""
         if self._fast is not None:
-            self._fast.begin(d)
+            self._fast.begin(d, self._qpos0)
             return None
         return capture(d)
 
@@ -185,15 +190,15 @@ class GuardedStepper:
         bad = self._bad_state_count()
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
-            fast.begin(d)
+            fast.begin(d, self._qpos0)
             if full_step is None:
                 mujoco.mj_step(m, d)
             else:
                 full_step()
             if self._went_bad(bad):
-                return self._unstable_trial(m.opt.timestep)
+                return self._unstable_trial(self._opt.timestep)
             if not fast.end_may_touch(d):
-                report = self._plain_report(m.opt.timestep)
+                report = self._plain_report(self._opt.timestep)
                 self.last_report = report
                 return report
             hit = fast.first((float(self._state0[0]), float(d.time)))
@@ -204,10 +209,10 @@ class GuardedStepper:
             else:
                 full_step()
             if self._went_bad(bad):
-                return self._unstable_trial(m.opt.timestep)
+                return self._unstable_trial(self._opt.timestep)
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
-            dt = m.opt.timestep
+            dt = self._opt.timestep
             report = GuardReport((float(dt),), (), 0, True) if hit is not None else self._plain_report(dt)
             self.last_report = report
             return report
@@ -217,10 +222,9 @@ class GuardedStepper:
         """How many bad-state warnings MuJoCo has raised on the current data (views fetched once per data)."""
         d = self.data
         if self._warnings_of is not d:
-            self._warnings_of = d
-            self._warnings = tuple(d.warning[int(w)] for w in BAD_STATE_WARNINGS)
-        qpos, qvel, qacc = self._warnings
-        return qpos.number + qvel.number + qacc.number
+            self._warnings_of, self._warnings = d, d.warning.number
+        counts = self._warnings
+        return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
 
     def _went_bad(self, bad):
         """True when the MuJoCo step just taken (from the saved state) met a bad state.
@@ -249,7 +253,8 @@ class GuardedStepper:
         ``bad``: MuJoCo's bad-state warning count before the step; a piece that raises it ends the step.
         """
         m, d = self.model, self.data
-        dt = float(m.opt.timestep)
+        opt = self._opt
+        dt = float(opt.timestep)
         remaining = length = dt
         substeps, clamps = [], []
         exhausted = unstable = False
@@ -267,7 +272,7 @@ class GuardedStepper:
                         # redo the trial: up to the contact, then a short step in contact
                         mujoco.mj_setState(m, d, self._state0, STATE_SPEC)
                         rollbacks += 1
-                        m.opt.timestep = h
+                        opt.timestep = h
                         mujoco.mj_step(m, d)
                         substeps.append(h)
                         if self._went_bad(bad):
@@ -294,7 +299,7 @@ class GuardedStepper:
                     unstable = True
                     break
         finally:
-            m.opt.timestep = dt
+            opt.timestep = dt
         if rollbacks and finish is not None:
             finish()
         self.clamps_total += len(clamps)
@@ -319,7 +324,7 @@ class GuardedStepper:
         else:
             start = self._begin(d)
         bad = self._bad_state_count()
-        m.opt.timestep = length
+        self._opt.timestep = length
         mujoco.mj_step(m, d)
         if self._went_bad(bad):
             return UNSTABLE

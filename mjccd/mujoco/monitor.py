@@ -360,10 +360,11 @@ class StepCheck:
         mujoco.mj_getState(self.model, data, key, KINEMATIC_STATE)
         return key.tobytes()
 
-    def _fill(self, idx, kb):
+    def _fill(self, idx, kb, state):
+        """Private data ``idx`` set to the kinematic ``state`` (whose bytes are ``kb``), kinematics run."""
         slot = self._slots[idx]
         kd = slot[0]
-        mujoco.mj_setState(self.model, kd, self._key, KINEMATIC_STATE)
+        mujoco.mj_setState(self.model, kd, state, KINEMATIC_STATE)
         mujoco.mj_kinematics(self.model, kd)
         slot[1] = kb
         return kd
@@ -375,15 +376,22 @@ class StepCheck:
         """
         self._start = self._end
 
-    def begin(self, data):
-        """Record the state at the start of a step."""
-        kb = self._key_of(data)
+    def begin(self, data, state=None):
+        """Record the state at the start of a step.
+
+        ``state``: the kinematic state (``KINEMATIC_STATE`` layout) when the caller already holds it
+        (the guard reads it off its saved full state), else it is read from ``data``.
+        """
+        if state is None:
+            kb, state = self._key_of(data), self._key
+        else:
+            kb = state.tobytes()
         slots = self._slots
         if slots[self._end][1] == kb:
             self._start = self._end
         elif slots[self._start][1] != kb:
             idx = 1 - self._end
-            kd = self._fill(idx, kb)
+            kd = self._fill(idx, kb, state)
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
 
@@ -400,7 +408,7 @@ class StepCheck:
             self._end = start
             return self.may_touch()
         idx = 1 - start
-        self._fill(idx, kb)
+        self._fill(idx, kb, self._key)
         self._end = idx
         xpos, xquat = self._xposes[idx]
         return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, self.radii, self.rmax,

@@ -69,6 +69,11 @@ def _positive(value, field, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
+def _bad_states(counts):
+    """How many bad-state warnings MuJoCo has raised, from its warning counts."""
+    return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
+
+
 class GuardedStepper:
     """MuJoCo stepping that never lets a guarded pair of bodies pass through each other within a step.
 
@@ -186,8 +191,10 @@ class GuardedStepper:
         ``full_step`` None is ``mujoco.mj_step(model, data)``.
         """
         m, d = self.model, self.data
-        mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
-        bad = self._bad_state_count()
+        state0 = self._state0
+        mujoco.mj_getState(m, d, state0, STATE_SPEC)
+        counts = self._warnings if self._warnings_of is d else self._watch_warnings(d)
+        bad = _bad_states(counts)
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
             fast.begin(d, self._qpos0)
@@ -195,13 +202,13 @@ class GuardedStepper:
                 mujoco.mj_step(m, d)
             else:
                 full_step()
-            if self._went_bad(bad):
+            if _bad_states(counts) != bad or d.time <= state0[0]:  # as _went_bad, inline
                 return self._unstable_trial(self._opt.timestep)
             if not fast.end_may_touch(d):
                 report = self._plain_report(self._opt.timestep)
                 self.last_report = report
                 return report
-            hit = fast.first((float(self._state0[0]), float(d.time)))
+            hit = fast.first((float(state0[0]), float(d.time)))
         else:
             start = capture(d)
             if full_step is None:
@@ -218,22 +225,19 @@ class GuardedStepper:
             return report
         return self._clamped(hit, bad, finish)
 
-    def _bad_state_count(self):
-        """How many bad-state warnings MuJoCo has raised on the current data (views fetched once per data)."""
-        d = self.data
-        if self._warnings_of is not d:
-            self._warnings_of, self._warnings = d, d.warning.number
-        counts = self._warnings
-        return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
+    def _watch_warnings(self, d):
+        """MuJoCo's warning counts of ``d`` (a view, fetched once per data)."""
+        self._warnings_of, self._warnings = d, d.warning.number
+        return self._warnings
 
     def _went_bad(self, bad):
         """True when the MuJoCo step just taken (from the saved state) met a bad state.
 
-        ``bad``: the warning count before it.  A reset clears the counts and then counts its own
-        warning, so a repeated reset can leave the sum as it was; it also sets the time back to 0,
-        so the step then ends no later than it began.
+        ``bad``: the bad-state warning count before it.  A reset clears the counts and then counts
+        its own warning, so a repeated reset can leave the sum as it was; it also sets the time
+        back to 0, so the step then ends no later than it began.
         """
-        return self._bad_state_count() != bad or self.data.time <= self._state0[0]
+        return _bad_states(self._warnings) != bad or self.data.time <= self._state0[0]
 
     def _unstable_trial(self, dt):
         """The report of a step whose trial MuJoCo found unstable (and reset): kept as it is, unchecked."""
@@ -323,7 +327,7 @@ class GuardedStepper:
             start = None
         else:
             start = self._begin(d)
-        bad = self._bad_state_count()
+        bad = _bad_states(self._warnings)
         self._opt.timestep = length
         mujoco.mj_step(m, d)
         if self._went_bad(bad):

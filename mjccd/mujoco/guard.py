@@ -198,25 +198,21 @@ class GuardedStepper:
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
             fast.begin(d, self._qpos0)
-            if full_step is None:
-                mujoco.mj_step(m, d)
-            else:
-                full_step()
-            if _bad_states(counts) != bad or d.time <= state0[0]:  # as _went_bad, inline
-                return self._unstable_trial(self._opt.timestep)
+        else:
+            start = capture(d)
+        if full_step is None:
+            mujoco.mj_step(m, d)
+        else:
+            full_step()
+        if _bad_states(counts) != bad or d.time <= state0[0]:  # _went_bad, inline on the hot path
+            return self._unstable_trial(self._opt.timestep)
+        if fast is not None:
             if not fast.end_may_touch(d):
                 report = self._plain_report(self._opt.timestep)
                 self.last_report = report
                 return report
             hit = fast.first((float(state0[0]), float(d.time)))
         else:
-            start = capture(d)
-            if full_step is None:
-                mujoco.mj_step(m, d)
-            else:
-                full_step()
-            if self._went_bad(bad):
-                return self._unstable_trial(self._opt.timestep)
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = self._opt.timestep
@@ -265,6 +261,10 @@ class GuardedStepper:
         rollbacks = 0
         try:
             while True:
+                if hit is UNSTABLE:  # the piece just taken (``length`` long) met a bad state
+                    substeps.append(length)
+                    unstable = True
+                    break
                 if hit is not None and len(clamps) < self.max_rechecks:
                     # a pair clamped again in the same step: the redone short step landed short of the
                     # contact (the lerp that the CCD follows runs ahead of a shorter MuJoCo step when the
@@ -285,10 +285,6 @@ class GuardedStepper:
                         remaining -= h
                         length = min(remaining, self.contact_step * dt)
                         hit = self._piece(length, False)
-                        if hit is UNSTABLE:
-                            substeps.append(length)
-                            unstable = True
-                            break
                         continue
                 elif hit is not None:
                     exhausted = True
@@ -298,10 +294,6 @@ class GuardedStepper:
                 remaining -= length
                 length = remaining
                 hit = self._piece(length, True)
-                if hit is UNSTABLE:
-                    substeps.append(length)
-                    unstable = True
-                    break
         finally:
             opt.timestep = dt
         if rollbacks and finish is not None:

@@ -32,7 +32,8 @@ from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz
-from mjccd.motion import Affine, Motion, Rigid, quadric_affine, quadric_at, rigid_scaled_into
+from mjccd.motion import (Affine, Motion, Rigid, quadric_affine, quadric_at, rigid_scaled_into,
+                          translation_scaled_into)
 from mjccd.quadric import (STATUS_NAMES, TOUCH_ULPS, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
                            touching_point)
 
@@ -729,6 +730,12 @@ def prepare_pair(PA, UA, sA, PB, UB, sB, length):
 
 
 @_jit
+def _same(q0, q1):
+    """True when two quaternions are the same numbers (the orientation does not move)."""
+    return q0[0] == q1[0] and q0[1] == q1[1] and q0[2] == q1[2] and q0[3] == q1[3]
+
+
+@_jit
 def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """Exact CCD of two ellipsoids moving between two poses: (status at start, intervals (k, 2), point, normal).
 
@@ -741,7 +748,11 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
     external touch at t > 0.
     """
     length = max(ra.max(), rb.max())
-    if affine:
+    if _same(qa0, qa1) and _same(qb0, qb1):  # both only translate: rigid and affine agree, F of degree 2
+        Pp, Up, sp = empty_pencil(0, 1, 2)
+        translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
+        translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)
+    elif affine:
         Pp, Up, sp = empty_pencil(1, 2, 3)
         zero = np.zeros(3)
         pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)

@@ -208,6 +208,36 @@ def rigid_scaled_into(radii, p0, q0, p1, q1, origin0, origin1, length, P, U, s, 
 
 
 @_jit
+def translation_scaled_into(radii, p0, q, p1, origin0, origin1, length, P, U, s, side):
+    """:func:`rigid_scaled_into` for a motion whose quaternion stays ``q``: a pure translation, written at
+    its true degrees (P constant, U linear, s quadratic) into a pencil of degrees (0, 1, 2).
+
+    The same polynomials as the rigid motion with ``q1 = q0`` (whose lerped
+    rotation is constant), without the common factor that raises their degrees
+    to (4, 5, 6): F drops from degree 18 to 2 in t.
+    """
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    R = ((w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)),
+         (2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)),
+         (2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z))
+    d = ((length / radii[0]) ** 2, (length / radii[1]) ** 2, (length / radii[2]) ** 2)
+    for i in range(3):
+        for j in range(i, 3):
+            P[i, j, side, 0] = R[i][0] * d[0] * R[j][0] + R[i][1] * d[1] * R[j][1] + R[i][2] * d[2] * R[j][2]
+            P[j, i, side, 0] = P[i, j, side, 0]
+    c0 = ((p0[0] - origin0[0]) / length, (p0[1] - origin0[1]) / length, (p0[2] - origin0[2]) / length)
+    c1 = ((p1[0] - origin1[0]) / length, (p1[1] - origin1[1]) / length, (p1[2] - origin1[2]) / length)
+    for i in range(3):  # U = -P p, p the centre lerp in the new frame
+        U[i, side, 0] = -(P[i, 0, side, 0] * c0[0] + P[i, 1, side, 0] * c0[1] + P[i, 2, side, 0] * c0[2])
+        U[i, side, 1] = -(P[i, 0, side, 0] * c1[0] + P[i, 1, side, 0] * c1[1] + P[i, 2, side, 0] * c1[2])
+    g = (w * w + x * x + y * y + z * z) ** 2  # |q|^4, the factor the rigid motion carries
+    s[side, 0] = -(U[0, side, 0] * c0[0] + U[1, side, 0] * c0[1] + U[2, side, 0] * c0[2]) - g
+    s[side, 1] = -(U[0, side, 0] * c1[0] + U[1, side, 0] * c1[1] + U[2, side, 0] * c1[2]
+                   + U[0, side, 1] * c0[0] + U[1, side, 1] * c0[1] + U[2, side, 1] * c0[2]) - 2.0 * g
+    s[side, 2] = -(U[0, side, 1] * c1[0] + U[1, side, 1] * c1[1] + U[2, side, 1] * c1[2]) - g
+
+
+@_jit
 def quadric_rigid(radii, p0, q0, p1, q1):
     """(P, U, s) in Bernstein form of the rigid motion (centre lerp, quaternion lerp); see :func:`rigid_scaled_into`."""
     P = np.empty((3, 3, 1, 5))

@@ -291,6 +291,56 @@ def test_fused_kernel_matches_the_general_path():
                 assert np.array_equal(api.point, point)
 
 
+def test_translation_pencil_equals_the_rigid_one():
+    """A quaternion that does not move: the pencil at degrees (0, 1, 2) is the rigid pencil at (4, 5, 6)."""
+    from mjccd.ccd import empty_pencil, pencil_quadric_at
+    from mjccd.motion import rigid_scaled_into, translation_scaled_into
+
+    r = np.random.default_rng(8)
+    for _ in range(20):
+        radii, q = r.uniform(0.1, 2.0, 3), random_quat() * r.uniform(0.9, 1.1)  # not unit: |q|^4 kept
+        p0, p1, o0, o1 = r.normal(size=(4, 3))
+        low, high = empty_pencil(0, 1, 2), empty_pencil(4, 5, 6)
+        translation_scaled_into(radii, p0, q, p1, o0, o1, 1.7, *low, 0)
+        rigid_scaled_into(radii, p0, q, p1, q, o0, o1, 1.7, *high, 0)
+        for t in (0.0, 0.3, 0.71, 1.0):
+            want = pencil_quadric_at(*high, 0, t)
+            assert np.allclose(pencil_quadric_at(*low, 0, t), want, rtol=1e-12, atol=1e-12 * abs(want).max())
+
+
+@pytest.mark.parametrize("affine", [False, True])
+def test_pure_translation_matches_the_general_path(affine):
+    """Both quaternions fixed: the degree-2 F of the fused kernel against the general degree-18 pencil."""
+    from mjccd.ccd import solve_pair
+
+    kind = mjccd.Affine if affine else mjccd.Rigid
+    hits = 0
+    for seed in range(40):
+        r = np.random.default_rng(300 + seed)
+        ra, rb = r.uniform(0.1, 1.0, 3), r.uniform(0.1, 1.0, 3)
+        qa, qb = random_quat(), random_quat()
+        pa0, pb0 = r.normal(size=3) * 2, r.normal(size=3) * 0.3
+        pa1, pb1 = -pa0 + r.normal(size=3) * 0.5, pb0 + r.normal(size=3) * 0.3
+        a, b = mjccd.Ellipsoid(ra), mjccd.Ellipsoid(rb)
+        ma, mb = kind(pa0, qa, pa1, qa), kind(pb0, qb, pb1, qb)
+        _, want, _ = solve_pair(a, mjccd.Rigid(pa0, qa, pa1, qa), b, mjccd.Rigid(pb0, qb, pb1, qb))
+        got = mjccd.first_contact(a, ma, b, mb)
+        if want is None:
+            assert got is None
+            continue
+        assert got.status_at_start == want.status_at_start
+        assert got.time == pytest.approx(want.time, abs=1e-12)
+        if want.point is not None:
+            hits += 1
+            assert np.allclose(got.point, want.point, atol=1e-9)
+            assert np.allclose(got.normal, want.normal, atol=1e-9)
+        # a quaternion that moves by a hair takes the general kernel: the answer moves by a hair too
+        q_moved = qa + 1e-12
+        nearly = mjccd.first_contact(a, kind(pa0, qa, pa1, q_moved / np.linalg.norm(q_moved)), b, mb)
+        assert nearly.time == pytest.approx(got.time, abs=1e-9)
+    assert hits >= 10
+
+
 def test_rows_at_equals_row_by_row_evaluation():
     from mjccd import bernstein as bz
     from mjccd.ccd import _rows_at

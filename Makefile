@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.mjccd-installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench tunneling clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -22,7 +22,16 @@ bench: $(STAMP)
 	$(PY) -m pip install -q -e ".[bench]"
 	$(VENV)/bin/mjccd bench core
 
+# MuJoCo >= 4 in an environment of its own: the speculative-contacts peer of the tunneling benchmark
+MJ4 := .venv-mujoco4/bin/python
+$(MJ4):
+	$(PYTHON) -m venv .venv-mujoco4
+	$(MJ4) -m pip install -q "mujoco>=4" numpy
+
+tunneling: $(STAMP) $(MJ4)
+	$(PY) benchmarks/tunneling/run.py --mujoco4 $(MJ4)
+
 # numba's on-disk cache does not notice edits to other modules a kernel calls: clear it after editing kernels
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf $(VENV) .venv-mujoco4 .pytest_cache .hypothesis
 	find mjccd -name '*.nbi' -delete -o -name '*.nbc' -delete

@@ -1,69 +1,59 @@
 """Tunneling count and cost per simulated second: plain MuJoCo, smaller timesteps, guarded stepping.
 
-Usage: python benchmarks/tunneling/run.py [--runs N] [--quick] [--out docs/tunneling_benchmarks.md]
-                                          [--bench docs/benchmarks.md]
+Usage: python benchmarks/tunneling/run.py [--runs N] [--quick] [--mujoco4 PYTHON]
+                                          [--out docs/tunneling_benchmarks.md] [--bench docs/benchmarks.md]
 
-Writes the table to ``--out`` and, as its own marked section ("tunneling"), into ``--bench``.
+Writes the table to ``--out`` and, as its own marked section ("tunneling"), into ``--bench``.  With
+``--mujoco4`` (the Python of an environment with MuJoCo >= 4; ``make tunneling`` makes one) the table
+gets two peer columns from speculative.py: that MuJoCo's plain stepping and its speculative contacts.
 """
 import argparse
+import json
 import os
 import pathlib
 import platform
+import subprocess
 import sys
 import time
 
 import mujoco
 import numpy as np
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from scenarios import ROOT, Boxing, Cup, Wall  # noqa: E402
+HERE = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from scenarios import CASES, ROOT, Boxing, Cup, Wall, quick_cases, run  # noqa: E402
 
 from mjccd.bench.report import write_section  # noqa: E402
-from mjccd.mujoco.guard import BAD_STATE_WARNINGS, GuardedStepper  # noqa: E402
+from mjccd.mujoco.guard import GuardedStepper  # noqa: E402
 
 MODES = ("plain", "dt/2", "dt/5", "dt/10", "guarded")
-CASES = [
-    (Wall, 0.002, (10.0, 50.0, 200.0)),
-    (Wall, 0.005, (10.0, 50.0, 200.0)),
-    (Wall, 0.010, (10.0, 50.0, 200.0)),
-    (Cup, 0.002, (2.0, 10.0, 20.0)),
-    (Cup, 0.010, (2.0, 10.0, 20.0)),
-    (Boxing, 1 / 120, (5.0, 20.0, 60.0)),
-]
+DIVISOR = {"plain": 1, "dt/2": 2, "dt/5": 5, "dt/10": 10, "guarded": 1}
+PEER_MODES = ("plain", "speculative")  # speculative.py's runs, under MuJoCo >= 4
+DEFAULT_MUJOCO4 = ROOT / ".venv-mujoco4" / "bin" / "python"
 
 
 def simulate(cls, dt, speed, mode, seed):
-    """(tunneled, seconds of CPU per simulated second, clamps, unstable) of one run.
+    """(tunneled, seconds of CPU per simulated second, clamps, unstable) of one run (see scenarios.run)."""
+    sc = cls(dt / DIVISOR[mode], speed=speed)
+    guards = []
 
-    ``unstable``: MuJoCo met a NaN, infinite or huge position, velocity or acceleration and reset the
-    data (its bad-state warnings); the rest of such a run simulates the start pose, so "not tunneled"
-    means nothing there.
-    """
-    div = {"plain": 1, "dt/2": 2, "dt/5": 5, "dt/10": 10, "guarded": 1}[mode]
-    sc = cls(dt / div, speed=speed)
-    m = sc.model
-    d = mujoco.MjData(m)
-    sc.reset(d, np.random.default_rng(seed))
-    guard = GuardedStepper(m, d, sc.ellipsoids(), pairs=sc.pairs) if mode == "guarded" else None
-    steps = int(round(sc.duration / m.opt.timestep))
-    tunneled = False
-    elapsed = 0.0
-    for _ in range(steps):
-        t0 = time.perf_counter()  # the controller and the step are timed, the tunneling test is not
-        sc.control(d)
-        if guard is None:
-            mujoco.mj_step(m, d)
-        else:
-            guard.step()
-        elapsed += time.perf_counter() - t0
-        tunneled = tunneled or sc.tunneled(d)
-    unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
-    return tunneled, elapsed / sc.duration, 0 if guard is None else guard.clamps_total, unstable
+    def guarded(m, d):
+        guards.append(GuardedStepper(m, d, sc.ellipsoids(), pairs=sc.pairs))
+        return guards[0].step
+
+    tunneled, cost, unstable = run(sc, seed, guarded if mode == "guarded" else None)
+    return tunneled, cost, guards[0].clamps_total if guards else 0, unstable
+
+
+def cell(tunneled, runs, cost, unstable, note=""):
+    """One table cell: runs that tunneled / runs · median cost (· note) (· the unstable runs, if any)."""
+    return f"{tunneled}/{runs} · {cost:.3g}" + (f" · {note}" if note else "") \
+        + (f" · **{unstable} unstable**" if unstable else "")
 
 
 def table(runs, cases):
-    """Rows of formatted cells, and the raw medians {(scenario, dt, speed, mode): ms per simulated second}."""
-    rows, costs = [], {}
+    """Rows of formatted cells, and {(scenario, dt, speed, mode): (runs tunneled, median ms per simulated second)}."""
+    rows, cells = [], {}
     for cls, dt, speeds in cases:
         simulate(cls, dt, speeds[0], "guarded", 0)  # compile and warm the caches
         for speed in speeds:
@@ -72,20 +62,58 @@ def table(runs, cases):
                 res = [simulate(cls, dt, speed, mode, seed) for seed in range(runs)]
                 tun = sum(r[0] for r in res)
                 cost = np.median([r[1] for r in res]) * 1e3
-                unstable = sum(r[3] for r in res)
-                costs[cls.name, dt, speed, mode] = cost
-                cell = f"{tun}/{runs} · {cost:.3g}"
-                if mode == "guarded":
-                    clamps = np.median([r[2] for r in res])
-                    cell += f" · {clamps:g} clamp" + ("" if clamps == 1 else "s")
-                row.append(cell + (f" · **{unstable} unstable**" if unstable else ""))
+                cells[cls.name, dt, speed, mode] = (tun, cost)
+                clamps = np.median([r[2] for r in res])
+                note = f"{clamps:g} clamp" + ("" if clamps == 1 else "s") if mode == "guarded" else ""
+                row.append(cell(tun, runs, cost, sum(r[3] for r in res), note))
             rows.append(row)
             print(" | ".join(row), flush=True)
-    return rows, costs
+    return rows, cells
 
 
-def markdown(rows, costs, runs, command, elapsed):
+def peer_records(python, runs, quick):
+    """{(scenario, dt, speed, mode): record} of speculative.py, run by ``python`` (an environment with MuJoCo 4)."""
+    cmd = [python, str(HERE / "speculative.py"), "--runs", str(runs)] + (["--quick"] if quick else [])
+    proc = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)  # its progress goes to stderr
+    if proc.returncode != 0:
+        raise SystemExit(f"--mujoco4: `{' '.join(cmd)}` failed with exit code {proc.returncode}")
+    records = [json.loads(line) for line in proc.stdout.splitlines() if line.strip()]
+    return {(r["scenario"], r["dt"], r["speed"], r["mode"]): r for r in records}
+
+
+def add_peer(rows, cells, peer):
+    """Append the peer's cells to each row; its (tunneled, cost) join ``cells`` as modes "mujoco4 plain" etc."""
+    for row, key in zip(rows, dict.fromkeys(k[:3] for k in cells)):
+        for mode in PEER_MODES:
+            r = peer[key + (mode,)]
+            cells[key + ("mujoco4 " + mode,)] = (r["tunneled"], r["cost"])
+            row.append(cell(r["tunneled"], r["runs"], r["cost"], r["unstable"]))
+
+
+def peer_summary(cells, runs):
+    """Lines comparing speculative contacts with guarded stepping where plain MuJoCo tunnels in most runs."""
+    keys = [k[:3] for k in cells if k[3] == "plain" and cells[k][0] > runs / 2]
+    if not keys:
+        return []
+    stopped = sum(cells[k + ("mujoco4 speculative",)][0] == 0 for k in keys)
+    ratios = [cells[k + ("guarded",)][1] / cells[k + ("mujoco4 speculative",)][1] for k in keys]
+    return ["", f"Where plain MuJoCo tunnels in most runs ({len(keys)} cells): speculative contacts stop "
+                f"tunneling in {stopped}, guarded stepping in "
+                f"{sum(cells[k + ('guarded',)][0] == 0 for k in keys)}; guarded stepping costs "
+                f"{min(ratios):.2g}-{max(ratios):.2g}x (median {np.median(ratios):.2g}x) what speculative "
+                "contacts cost."]
+
+
+def markdown(rows, cells, runs, command, elapsed, peer_version=None):
     head = ["scenario", "dt (ms)", "speed (m/s)"] + list(MODES)
+    peer_text = []
+    if peer_version:
+        head += [f"MuJoCo {peer_version} plain", f"MuJoCo {peer_version} speculative"]
+        peer_text = [f"Peer columns: the same runs under MuJoCo {peer_version} in an environment of its own "
+                     "(`benchmarks/tunneling/speculative.py`, run by this command after the other columns), "
+                     "plain and with speculative contacts (`<flag speculative=\"enable\"/>`, MuJoCo >= 4.0; "
+                     "dm-control does not run on it yet). A speculative contact is a contact MuJoCo sees, so "
+                     "the boxing test counts it as seen."]
     lines = ["# Tunneling benchmarks", "",
              "Each cell: runs that tunneled / runs · median CPU milliseconds per simulated second "
              "(the controller and the step are timed, the tunneling test is not). "
@@ -106,15 +134,17 @@ def markdown(rows, costs, runs, command, elapsed):
              "a's right arm swung about the shoulder through b's head in models/boxing.xml, arm and head "
              "colliding through their bounding ellipsoids, integrated with MuJoCo's implicit integrator (with the "
              "default Euler the guarded runs at 20 and 60 m/s diverged; see guarded-stepping.md) (tunneled: "
-             "the fist past the head's centre before MuJoCo saw any arm-head contact).", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+             "the fist past the head's centre before MuJoCo saw any arm-head contact).",
+             *peer_text, "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
-    ratios = [(dt, speed, costs[name, dt, speed, "guarded"] / costs[name, dt, speed, "plain"])
-              for (name, dt, speed, mode) in costs if name == "boxing" and mode == "plain"]
+    ratios = [(dt, speed, cells[name, dt, speed, "guarded"][1] / cells[name, dt, speed, "plain"][1])
+              for (name, dt, speed, mode) in cells if name == "boxing" and mode == "plain"]
     if ratios:
         dt, speed, ratio = min(ratios, key=lambda r: r[1])
         lines += ["", f"Boxing at the normal speed ({speed:g} m/s): guarded stepping costs "
                       f"{ratio:.2f}x plain stepping."]
+    if peer_version:
+        lines += peer_summary(cells, runs)
     lines += ["", f"Command: `{command}` ({elapsed:.0f} s).", "",
               f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
               f"Python {platform.python_version()}, MuJoCo {mujoco.__version__}, {platform.system()}.", ""]
@@ -125,6 +155,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=10, help="runs per cell (default 10)")
     ap.add_argument("--quick", action="store_true", help="one timestep and speed per scenario")
+    default_peer = os.environ.get("MJCCD_MUJOCO4_PYTHON") or (
+        str(DEFAULT_MUJOCO4) if DEFAULT_MUJOCO4.exists() else "")
+    ap.add_argument("--mujoco4", default=default_peer, metavar="PYTHON",
+                    help="Python of an environment with MuJoCo >= 4 for the speculative-contacts peer columns "
+                         "(default: $MJCCD_MUJOCO4_PYTHON, else .venv-mujoco4/bin/python if present; '' for none)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "tunneling_benchmarks.md"),
                     help="markdown file to write ('' for none)")
     ap.add_argument("--bench", default=str(ROOT / "docs" / "benchmarks.md"),
@@ -132,11 +167,18 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.runs < 1:
         ap.error(f"--runs: expected a positive count, got {args.runs}")
-    cases = [(c, dt, s[-1:]) for c, dt, s in CASES[::2]] if args.quick else CASES
+    cases = quick_cases() if args.quick else CASES
+    if args.mujoco4 and not pathlib.Path(args.mujoco4).exists():
+        ap.error(f"--mujoco4: no Python at {args.mujoco4} (make tunneling sets one up in .venv-mujoco4)")
     t0 = time.perf_counter()
-    rows, costs = table(args.runs, cases)
-    text = markdown(rows, costs, args.runs, "python benchmarks/tunneling/run.py " + " ".join(argv or sys.argv[1:]),
-                    time.perf_counter() - t0)
+    rows, cells = table(args.runs, cases)
+    peer_version = None
+    if args.mujoco4:
+        peer = peer_records(args.mujoco4, args.runs, args.quick)
+        add_peer(rows, cells, peer)
+        peer_version = next(iter(peer.values()))["mujoco"]
+    text = markdown(rows, cells, args.runs, "python benchmarks/tunneling/run.py " + " ".join(argv or sys.argv[1:]),
+                    time.perf_counter() - t0, peer_version)
     print(text)
     if args.out:
         pathlib.Path(args.out).write_text(text)

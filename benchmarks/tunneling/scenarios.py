@@ -1,14 +1,20 @@
-"""Tunneling scenarios: a fast ball at a thin wall, balls in a jerked cup, a punch through a head."""
+"""Tunneling scenarios: a fast ball at a thin wall, balls in a jerked cup, a punch through a head.
+
+Only MuJoCo and NumPy are needed to build and run them (mjccd only for :meth:`Scenario.ellipsoids`), so the
+speculative-contacts peer (speculative.py) runs them in an environment with another MuJoCo.
+"""
 import pathlib
+import time
 import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
 
-from mjccd.fit import fit_model
-from mjccd.mujoco.guard import geom_ellipsoids
-
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+# MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration (it then resets the data)
+BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                      mujoco.mjtWarning.mjWARN_BADQACC)
 
 # Contacts of the guarded geoms use the stiffest time constant MuJoCo allows at the running timestep
 # (refsafe raises 0.001 s to 2 x timestep); with the default 0.02 s even a detected contact cannot stop
@@ -60,6 +66,8 @@ class Scenario:
         mujoco.mj_forward(self.model, data)
 
     def ellipsoids(self):
+        """The guard's :class:`~mjccd.mujoco.EllipsoidSet`: one fitted per body."""
+        from mjccd.fit import fit_model
         return fit_model(self.model)
 
     pairs = None
@@ -139,6 +147,7 @@ class Cup(Scenario):
         mujoco.mj_forward(self.model, data)
 
     def ellipsoids(self):
+        from mjccd.fit import fit_model
         return fit_model(self.model, per="geom")
 
     def _cup_v(self, t):
@@ -237,6 +246,7 @@ class Boxing(Scenario):
         mujoco.mj_forward(m, data)
 
     def ellipsoids(self):
+        from mjccd.mujoco.guard import geom_ellipsoids
         return geom_ellipsoids(self.model, 5)
 
     pairs = (("a_RightForeArm", "b_Head"), ("a_RightHand", "b_Head"))
@@ -252,3 +262,46 @@ class Boxing(Scenario):
         fist = data.geom_xpos[m.geom("a_RightHand_bound").id] - self._shoulder
         past = np.cross(head_c, fist) @ self._axis_world > 0.0 and fist @ head_c > 0.0
         return bool(past and not self._touched)
+
+
+# (scenario, timestep, speeds) of the benchmark table
+CASES = [
+    (Wall, 0.002, (10.0, 50.0, 200.0)),
+    (Wall, 0.005, (10.0, 50.0, 200.0)),
+    (Wall, 0.010, (10.0, 50.0, 200.0)),
+    (Cup, 0.002, (2.0, 10.0, 20.0)),
+    (Cup, 0.010, (2.0, 10.0, 20.0)),
+    (Boxing, 1 / 120, (5.0, 20.0, 60.0)),
+]
+
+
+def quick_cases():
+    """One timestep and the fastest speed per scenario (``--quick``)."""
+    return [(c, dt, s[-1:]) for c, dt, s in CASES[::2]]
+
+
+def run(scenario, seed, make_step=None):
+    """(tunneled, CPU seconds per simulated second, unstable) of one jittered run of ``scenario``.
+
+    ``make_step(model, data)``, when given, returns the function that takes one step (called after the
+    reset); otherwise each step is ``mujoco.mj_step``.  The controller and the step are timed, the
+    tunneling test is not.  ``unstable``: MuJoCo met a bad state and reset the data (its bad-state
+    warnings), so the rest of the run simulated the start pose and "not tunneled" means nothing.
+    """
+    m = scenario.model
+    d = mujoco.MjData(m)
+    scenario.reset(d, np.random.default_rng(seed))
+    step = None if make_step is None else make_step(m, d)
+    tunneled = False
+    elapsed = 0.0
+    for _ in range(int(round(scenario.duration / m.opt.timestep))):
+        t0 = time.perf_counter()
+        scenario.control(d)
+        if step is None:
+            mujoco.mj_step(m, d)
+        else:
+            step()
+        elapsed += time.perf_counter() - t0
+        tunneled = tunneled or scenario.tunneled(d)
+    unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
+    return tunneled, elapsed / scenario.duration, unstable

@@ -1,0 +1,68 @@
+"""The tunneling benchmark's scripts: scenarios that run without mjccd, the MuJoCo 4 peer, clear errors."""
+import json
+import pathlib
+import subprocess
+import sys
+
+import mujoco
+import pytest
+
+HERE = pathlib.Path(__file__).resolve().parents[1] / "benchmarks" / "tunneling"
+HAS_SPECULATIVE = hasattr(mujoco.mjtEnableBit, "mjENBL_SPECULATIVE")
+
+# a Python in which importing mjccd fails, as in the peer's environment (MuJoCo and NumPy only)
+WITHOUT_MJCCD = """
+import sys
+class NoMjccd:
+    def find_spec(self, name, path=None, target=None):
+        if name == "mjccd" or name.startswith("mjccd."):
+            raise ImportError("mjccd is not installed here")
+sys.meta_path.insert(0, NoMjccd())
+"""
+
+
+def _python(code, *args):
+    return subprocess.run([sys.executable, "-c", WITHOUT_MJCCD + code, *args], capture_output=True, text=True,
+                          cwd=HERE, timeout=300)
+
+
+def test_scenarios_build_and_run_without_mjccd():
+    proc = _python(f"""
+sys.path.insert(0, {str(HERE)!r})
+from scenarios import Wall, run
+tunneled, cost, unstable = run(Wall(0.01, speed=200.0), 0)
+print(tunneled, cost > 0, unstable)
+""")
+    assert proc.returncode == 0, proc.stderr
+    # plain MuJoCo at 10 ms lets a 200 m/s ball through the 2 cm wall; nothing diverges
+    assert proc.stdout.split() == ["True", "True", "False"]
+
+
+def test_speculative_peer_runs_or_says_it_needs_mujoco_4():
+    proc = _python(f"import runpy; sys.argv = ['speculative.py', '--quick', '--runs', '1']; "
+                   f"runpy.run_path({str(HERE / 'speculative.py')!r}, run_name='__main__')")
+    if not HAS_SPECULATIVE:
+        assert proc.returncode == 2
+        assert f"MuJoCo {mujoco.__version__}" in proc.stderr and "MuJoCo 4.0" in proc.stderr
+        assert "Traceback" not in proc.stderr
+        return
+    assert proc.returncode == 0, proc.stderr
+    records = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert {r["mode"] for r in records} == {"plain", "speculative"}
+    assert all(r["runs"] == 1 and r["cost"] > 0 for r in records)
+
+
+def test_run_rejects_a_missing_peer_python(tmp_path):
+    proc = subprocess.run([sys.executable, str(HERE / "run.py"), "--mujoco4", str(tmp_path / "nowhere"),
+                           "--quick", "--out", "", "--bench", ""], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    assert "--mujoco4: no Python at" in proc.stderr and "Traceback" not in proc.stderr
+
+
+@pytest.mark.skipif(not HAS_SPECULATIVE, reason="speculative contacts need MuJoCo >= 4")
+def test_speculative_contacts_stop_the_wall_ball():
+    sys.path.insert(0, str(HERE))
+    from speculative import simulate
+    from scenarios import Wall
+    assert simulate(Wall, 0.01, 200.0, False, 0)[0]
+    assert not simulate(Wall, 0.01, 200.0, True, 0)[0]

@@ -66,3 +66,16 @@ def test_speculative_contacts_stop_the_wall_ball():
     from scenarios import Wall
     assert simulate(Wall, 0.01, 200.0, False, 0)[0]
     assert not simulate(Wall, 0.01, 200.0, True, 0)[0]
+
+
+def test_a_kick_from_rest_tunnels_plain_mujoco_but_not_the_guard():
+    """The kick scenario: from rest through the wall within one step; the guard sees the contact."""
+    sys.path.insert(0, str(HERE))
+    from scenarios import Kick, run
+
+    from mjccd.mujoco.guard import GuardedStepper
+
+    assert run(Kick(0.01, speed=50.0), 0)[0]
+    sc = Kick(0.01, speed=50.0)
+    tunneled, _, unstable = run(sc, 0, lambda m, d: GuardedStepper(m, d, sc.ellipsoids()).step)
+    assert not tunneled and not unstable

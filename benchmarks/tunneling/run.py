@@ -83,7 +83,8 @@ def peer_records(python, runs, quick):
 
 def add_peer(rows, cells, peer):
     """Append the peer's cells to each row; its (tunneled, cost) join ``cells`` as modes "mujoco4 plain" etc."""
-    for row, key in zip(rows, dict.fromkeys(k[:3] for k in cells)):
+    row_keys = list(dict.fromkeys(k[:3] for k in cells))  # (scenario, dt, speed) of each row, in order
+    for row, key in zip(rows, row_keys):
         for mode in PEER_MODES:
             r = peer[key + (mode,)]
             cells[key + ("mujoco4 " + mode,)] = (r["tunneled"], r["cost"])

@@ -237,16 +237,6 @@ def F_from_pencil(Pp, Up, sp):
     return F + F2
 
 
-@_jit
-def build_F(PA, UA, sA, PB, UB, sB):
-    """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from two (P, U, s)."""
-    Pp, Up, sp = empty_pencil(max(PA.shape[2], PB.shape[2]) - 1, max(UA.shape[1], UB.shape[1]) - 1,
-                              max(sA.shape[0], sB.shape[0]) - 1)
-    pencil_side_into(PA, UA, sA, Pp, Up, sp, 0)
-    pencil_side_into(PB, UB, sB, Pp, Up, sp, 1)
-    return F_from_pencil(Pp, Up, sp)
-
-
 # ---------------------------------------------------------------- state
 
 

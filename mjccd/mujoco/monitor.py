@@ -320,10 +320,10 @@ class CCDMonitor:
 class StepCheck:
     """The lean per-step check behind guarded stepping (rigid and affine motions).
 
-    ``begin(data)`` before a step and ``end(data)`` after it record the
+    ``begin(data)`` before a step and ``end_may_touch(data)`` after it record the
     ellipsoid poses at both ends (forward kinematics on private ``MjData``,
     poses written into preallocated arrays by one compiled call; the poses of
-    a state seen at the last ``end`` or ``begin`` are reused).  ``may_touch()``
+    a state seen at the last ``end_may_touch`` or ``begin`` are reused).  ``may_touch()``
     is a conservative compiled test (swept spheres, then separating slabs);
     only when it cannot clear every pair does ``first()`` run the exact
     batched check, :meth:`mjccd.scene.Scene.step`, on the same poses: so the
@@ -370,9 +370,9 @@ class StepCheck:
         return kd
 
     def follow(self):
-        """Record the state seen at the last ``end`` as the start of the next step, without reading it.
+        """Record the state seen at the last ``end_may_touch`` as the start of the next step, without reading it.
 
-        Only valid when the data has not changed since that ``end`` (the guard's next piece of a step).
+        Only valid when the data has not changed since that ``end_may_touch`` (the guard's next piece of a step).
         """
         self._start = self._end
 
@@ -395,12 +395,9 @@ class StepCheck:
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
 
-    def end(self, data):
-        """Record the state at the end of the step begun last."""
-        self.end_may_touch(data)
-
     def end_may_touch(self, data):
-        """:meth:`end`, then :meth:`may_touch` (one compiled call when the end state is new)."""
+        """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call
+        when the end state is new)."""
         kb = self._key_of(data)
         slots = self._slots
         start = self._start

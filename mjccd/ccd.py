@@ -48,6 +48,11 @@ CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact qua
 MAX_INTERVALS = 100000
 # relative rounding noise of F's coefficients (construction and evaluation)
 NOISE = 256 * 2.220446049250313e-16
+# Two unit quaternions that differ by at most this in every component are one orientation.  MuJoCo's
+# integration of a free body that does not turn moves its quaternion by about 2 units in the last place
+# of 1 per step (e.g. a ball in flight); the turn such a difference stands for (below 4e-15 rad) moves no
+# surface point by more than 4e-15 of its distance from the centre, far inside NOISE.
+SAME_ORIENTATION = 8 * 2.220446049250313e-16
 
 
 # ---------------------------------------------------------------- building F
@@ -721,8 +726,9 @@ def prepare_pair(PA, UA, sA, PB, UB, sB, length):
 
 @_jit
 def _same(q0, q1):
-    """True when two quaternions are the same numbers (the orientation does not move)."""
-    return q0[0] == q1[0] and q0[1] == q1[1] and q0[2] == q1[2] and q0[3] == q1[3]
+    """True when two unit quaternions are one orientation up to rounding (see SAME_ORIENTATION)."""
+    return (abs(q0[0] - q1[0]) <= SAME_ORIENTATION and abs(q0[1] - q1[1]) <= SAME_ORIENTATION
+            and abs(q0[2] - q1[2]) <= SAME_ORIENTATION and abs(q0[3] - q1[3]) <= SAME_ORIENTATION)
 
 
 @_jit
@@ -738,7 +744,7 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
     external touch at t > 0.
     """
     length = max(ra.max(), rb.max())
-    if _same(qa0, qa1) and _same(qb0, qb1):  # both only translate: rigid and affine agree, F of degree 2
+    if _same(qa0, qa1) and _same(qb0, qb1):  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
         translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)

@@ -341,6 +341,28 @@ def test_pure_translation_matches_the_general_path(affine):
     assert hits >= 10
 
 
+def test_a_quaternion_moved_by_rounding_is_solved_as_a_translation():
+    """A ball in MuJoCo flight: its quaternion drifts by units in the last place each step.  The degree-2
+    path takes it, and the answer is the general degree-18 path's for the same drifted motion."""
+    from mjccd.ccd import SAME_ORIENTATION, _same, solve_pair
+
+    for seed in range(20):
+        r = np.random.default_rng(500 + seed)
+        ra, rb = r.uniform(0.1, 1.0, 3), r.uniform(0.1, 1.0, 3)
+        qa, qb = random_quat(), random_quat()
+        qa1 = qa + r.uniform(-0.5, 0.5, 4) * SAME_ORIENTATION
+        moving = mjccd.Rigid(np.zeros(3), qa, np.zeros(3), qa1)
+        assert _same(moving.quaternion0, moving.quaternion1)  # after normalisation: the degree-2 path
+        assert not np.array_equal(moving.quaternion0, moving.quaternion1)
+        pa0, pb0 = np.array([-3.0, 0, 0]) + r.normal(size=3) * 0.1, r.normal(size=3) * 0.1
+        pa1, pb1 = np.array([3.0, 0, 0]) + r.normal(size=3) * 0.1, pb0
+        a, b = mjccd.Ellipsoid(ra), mjccd.Ellipsoid(rb)
+        got = mjccd.first_contact(a, mjccd.Rigid(pa0, qa, pa1, qa1), b, mjccd.Rigid(pb0, qb, pb1, qb))
+        _, want, _ = solve_pair(a, mjccd.Rigid(pa0, qa, pa1, qa1), b, mjccd.Rigid(pb0, qb, pb1, qb))
+        assert got.time == pytest.approx(want.time, abs=1e-12)
+        assert np.allclose(got.point, want.point, atol=1e-9) and np.allclose(got.normal, want.normal, atol=1e-9)
+
+
 def test_rows_at_equals_row_by_row_evaluation():
     from mjccd import bernstein as bz
     from mjccd.ccd import _rows_at

@@ -29,8 +29,8 @@ def _python(code, *args):
 def test_scenarios_build_and_run_without_mjccd():
     proc = _python(f"""
 sys.path.insert(0, {str(HERE)!r})
-from scenarios import Wall, run
-tunneled, cost, unstable = run(Wall(0.01, speed=200.0), 0)
+from scenarios import Episodes, Wall
+tunneled, cost, unstable = Episodes(Wall(0.01, speed=200.0)).run(0)
 print(tunneled, cost > 0, unstable)
 """)
     assert proc.returncode == 0, proc.stderr
@@ -64,18 +64,20 @@ def test_speculative_contacts_stop_the_wall_ball():
     sys.path.insert(0, str(HERE))
     from speculative import simulate
     from scenarios import Wall
-    assert simulate(Wall, 0.01, 200.0, False, 0)[0]
-    assert not simulate(Wall, 0.01, 200.0, True, 0)[0]
+    assert simulate(Wall, 0.01, 200.0, False, 1)[0][0]
+    assert not simulate(Wall, 0.01, 200.0, True, 1)[0][0]
 
 
 def test_a_kick_from_rest_tunnels_plain_mujoco_but_not_the_guard():
     """The kick scenario: from rest through the wall within one step; the guard sees the contact."""
     sys.path.insert(0, str(HERE))
-    from scenarios import Kick, run
+    from scenarios import Episodes, Kick
 
     from mjccd.mujoco.guard import GuardedStepper
 
-    assert run(Kick(0.01, speed=50.0), 0)[0]
+    assert Episodes(Kick(0.01, speed=50.0)).run(0)[0]
     sc = Kick(0.01, speed=50.0)
-    tunneled, _, unstable = run(sc, 0, lambda m, d: GuardedStepper(m, d, sc.ellipsoids()).step)
-    assert not tunneled and not unstable
+    guarded = Episodes(sc, lambda m, d: GuardedStepper(m, d, sc.ellipsoids()).step)
+    for seed in range(3):  # one simulation, reset between runs: no state of a run leaks into the next
+        tunneled, _, unstable = guarded.run(seed)
+        assert not tunneled and not unstable

@@ -21,7 +21,7 @@ import numpy as np
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from scenarios import CASES, ROOT, Boxing, Cup, Kick, Wall, quick_cases, run  # noqa: E402
+from scenarios import CASES, ROOT, Boxing, Cup, Episodes, Kick, Wall, quick_cases  # noqa: E402
 
 from mjccd.bench.report import write_section  # noqa: E402
 from mjccd.mujoco.guard import GuardedStepper  # noqa: E402
@@ -32,17 +32,24 @@ PEER_MODES = ("plain", "speculative")  # speculative.py's runs, under MuJoCo >= 
 DEFAULT_MUJOCO4 = ROOT / ".venv-mujoco4" / "bin" / "python"
 
 
-def simulate(cls, dt, speed, mode, seed):
-    """(tunneled, seconds of CPU per simulated second, clamps, unstable) of one run (see scenarios.run)."""
+def simulate(cls, dt, speed, mode, runs):
+    """[(tunneled, seconds of CPU per simulated second, clamps, unstable)] of ``runs`` runs (seeds 0, 1, ...)
+    on one simulation (see scenarios.Episodes): one model, one data and, guarded, one GuardedStepper."""
     sc = cls(dt / DIVISOR[mode], speed=speed)
-    guards = []
+    guard = None
 
     def guarded(m, d):
-        guards.append(GuardedStepper(m, d, sc.ellipsoids(), pairs=sc.pairs))
-        return guards[0].step
+        nonlocal guard
+        guard = GuardedStepper(m, d, sc.ellipsoids(), pairs=sc.pairs)
+        return guard.step
 
-    tunneled, cost, unstable = run(sc, seed, guarded if mode == "guarded" else None)
-    return tunneled, cost, guards[0].clamps_total if guards else 0, unstable
+    episodes = Episodes(sc, guarded if mode == "guarded" else None)
+    results = []
+    for seed in range(runs):
+        before = guard.clamps_total if guard else 0
+        tunneled, cost, unstable = episodes.run(seed)
+        results.append((tunneled, cost, (guard.clamps_total if guard else 0) - before, unstable))
+    return results
 
 
 def cell(tunneled, runs, cost, unstable, note=""):
@@ -55,11 +62,11 @@ def table(runs, cases):
     """Rows of formatted cells, and {(scenario, dt, speed, mode): (runs tunneled, median ms per simulated second)}."""
     rows, cells = [], {}
     for cls, dt, speeds in cases:
-        simulate(cls, dt, speeds[0], "guarded", 0)  # compile and warm the caches
+        simulate(cls, dt, speeds[0], "guarded", 1)  # compile the kernels
         for speed in speeds:
             row = [cls.name, f"{dt * 1e3:.3g}", f"{speed:g}"]
             for mode in MODES:
-                res = [simulate(cls, dt, speed, mode, seed) for seed in range(runs)]
+                res = simulate(cls, dt, speed, mode, runs)
                 tun = sum(r[0] for r in res)
                 cost = np.median([r[1] for r in res]) * 1e3
                 cells[cls.name, dt, speed, mode] = (tun, cost)

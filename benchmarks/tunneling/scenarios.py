@@ -320,28 +320,42 @@ def quick_cases():
     return [(c, dt, s[-1:]) for c, dt, s in CASES[::2]]
 
 
-def run(scenario, seed, make_step=None):
-    """(tunneled, CPU seconds per simulated second, unstable) of one jittered run of ``scenario``.
+class Episodes:
+    """Repeated runs of one scenario on one simulation, built once as a user builds it.
 
-    ``make_step(model, data)``, when given, returns the function that takes one step (called after the
-    reset); otherwise each step is ``mujoco.mj_step``.  The controller and the step are timed, the
-    tunneling test is not.  ``unstable``: MuJoCo met a bad state and reset the data (its bad-state
-    warnings), so the rest of the run simulated the start pose and "not tunneled" means nothing.
+    The model, one ``MjData`` and the step function are made here; each :meth:`run` resets the data (an
+    episode, as dm-control's ``reset`` does) and times the steps.  Compiling a model per run would also
+    flush the CPU caches inside the timed steps, charging every mode for the compiler's memory traffic.
+
+    ``make_step(model, data)``, when given, returns the function that takes one step; otherwise each step
+    is ``mujoco.mj_step``.
     """
-    m = scenario.model
-    d = mujoco.MjData(m)
-    scenario.reset(d, np.random.default_rng(seed))
-    step = None if make_step is None else make_step(m, d)
-    tunneled = False
-    elapsed = 0.0
-    for _ in range(int(round(scenario.duration / m.opt.timestep))):
-        t0 = time.perf_counter()
-        scenario.control(d)
-        if step is None:
-            mujoco.mj_step(m, d)
-        else:
-            step()
-        elapsed += time.perf_counter() - t0
-        tunneled = tunneled or scenario.tunneled(d)
-    unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
-    return tunneled, elapsed / scenario.duration, unstable
+
+    def __init__(self, scenario, make_step=None):
+        self.scenario = scenario
+        self.data = mujoco.MjData(scenario.model)
+        self.step = None if make_step is None else make_step(scenario.model, self.data)
+
+    def run(self, seed):
+        """(tunneled, CPU seconds per simulated second, unstable) of one jittered run from the start state.
+
+        The controller and the step are timed, the tunneling test is not.  ``unstable``: MuJoCo met a
+        bad state and reset the data (its bad-state warnings), so the rest of the run simulated the start
+        pose and "not tunneled" means nothing.
+        """
+        sc, step = self.scenario, self.step
+        m, d = sc.model, self.data
+        sc.reset(d, np.random.default_rng(seed))  # mj_resetData also clears the warning counts
+        tunneled = False
+        elapsed = 0.0
+        for _ in range(int(round(sc.duration / m.opt.timestep))):
+            t0 = time.perf_counter()
+            sc.control(d)
+            if step is None:
+                mujoco.mj_step(m, d)
+            else:
+                step()
+            elapsed += time.perf_counter() - t0
+            tunneled = tunneled or sc.tunneled(d)
+        unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
+        return tunneled, elapsed / sc.duration, unstable

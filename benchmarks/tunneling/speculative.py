@@ -18,17 +18,18 @@ import mujoco
 import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from scenarios import CASES, quick_cases, run  # noqa: E402
+from scenarios import CASES, Episodes, quick_cases  # noqa: E402
 
 SPECULATIVE = getattr(getattr(mujoco, "mjtEnableBit", None), "mjENBL_SPECULATIVE", None)
 
 
-def simulate(cls, dt, speed, speculative, seed):
-    """(tunneled, seconds of CPU per simulated second, unstable) of one run."""
+def simulate(cls, dt, speed, speculative, runs):
+    """[(tunneled, seconds of CPU per simulated second, unstable)] of ``runs`` runs on one simulation."""
     sc = cls(dt, speed=speed)
     if speculative:
         sc.model.opt.enableflags |= int(SPECULATIVE)
-    return run(sc, seed)
+    episodes = Episodes(sc)
+    return [episodes.run(seed) for seed in range(runs)]
 
 
 def main(argv=None):
@@ -42,10 +43,10 @@ def main(argv=None):
         ap.error(f"this environment has MuJoCo {mujoco.__version__}, which has no speculative contacts "
                  "(they came with MuJoCo 4.0)")
     for cls, dt, speeds in quick_cases() if args.quick else CASES:
-        simulate(cls, dt, speeds[0], True, 0)  # warm the caches
+        simulate(cls, dt, speeds[0], True, 1)  # warm up
         for speed in speeds:
             for mode in ("plain", "speculative"):
-                res = [simulate(cls, dt, speed, mode == "speculative", seed) for seed in range(args.runs)]
+                res = simulate(cls, dt, speed, mode == "speculative", args.runs)
                 record = {"scenario": cls.name, "dt": dt, "speed": speed, "mode": mode,
                           "tunneled": int(sum(r[0] for r in res)), "runs": args.runs,
                           "cost": float(np.median([r[1] for r in res]) * 1e3),

@@ -411,6 +411,76 @@ def test_clamp_goes_to_entry_not_exit():
     assert data.qvel[0] < 0.0 and not inside_wall(data.qpos)
 
 
+@pytest.mark.parametrize("a", [-1.0, 0.0, 0.3, 1.0 - 1e-13, 1.0, 1.5, 2.0, 5.0])
+def test_reach_fraction_solves_the_sub_step_model(a):
+    """A MuJoCo step of s·dt covers a·s + (1 − a)·s² of the full step's displacement: s is that fraction's
+    first root, tau at constant velocity, √tau from rest, less than tau when slowing down."""
+    from mjccd.mujoco.guard import reach_fraction
+
+    for tau in (0.0, 1e-9, 0.01, 0.2, 0.5, 0.9, 1.0):
+        s = reach_fraction(tau, a)
+        assert 0.0 <= s <= 1.0
+        assert a * s + (1.0 - a) * s * s == pytest.approx(tau, abs=1e-12)
+        grid = np.linspace(0.0, s, 1001)[:-1]
+        assert np.all(a * grid + (1.0 - a) * grid ** 2 < tau + 1e-12)  # the first root
+        if a == 1.0:
+            assert s == tau
+        elif a == 0.0:
+            assert s == pytest.approx(np.sqrt(tau), abs=1e-15)
+        elif a > 1.0 and 0.0 < tau < 1.0:
+            assert s < tau
+
+
+def kicked(model, speed, dt):
+    """A ball at rest, pushed along +x by a force that leaves it at ``speed`` after one step of ``dt``."""
+    data = thrown(model, 0.0)
+    ball = model.body("ball").id
+    data.xfrc_applied[ball, 0] = speed / dt * model.body_mass[ball]
+    return data
+
+
+def test_a_kick_from_rest_is_clamped_once_at_the_contact():
+    """From rest, a shorter MuJoCo step covers less than its share of the step's path (s² of it): the clamp
+    step is √tau long, and it lands a hair past the contact, so one clamp does (the interpolation's tau
+    alone would land 1.6 cm short and clamp again and again)."""
+    dt, gap = 0.01, 0.02
+    model = wall_model(dt, x0=-(WALL_HALF + BALL + gap))
+    data = kicked(model, 10.0, dt)
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    start = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, start, spec)
+    guard = GuardedStepper(model, data, fit_model(model))
+    report = guard.step()
+    assert len(report.clamps) == 1 and report.rollbacks == 1
+    tau = report.clamps[0].fraction
+    assert report.substeps[0] == pytest.approx((np.sqrt(tau) + guard.overshoot) * dt, rel=1e-12)
+    replay = mujoco.MjData(model)  # the clamp step alone, from the same start
+    mujoco.mj_setState(model, replay, start, spec)
+    model.opt.timestep = report.substeps[0]
+    mujoco.mj_step(model, replay)
+    model.opt.timestep = dt
+    depth = replay.qpos[0] + BALL + WALL_HALF
+    assert 0.0 < depth < 2e-4  # a hair past the contact, so MuJoCo's contact takes over
+    assert not inside_wall(data.qpos)
+
+
+def test_a_lengthened_clamp_step_that_meets_a_contact_early_is_redone():
+    """The safety net of the lengthened clamp step: when it reaches a contact well before its end (here a
+    wrong model that runs it to 90 % of the step), it is rolled back and redone to just past that contact."""
+    dt, speed, x0 = 0.01, 10.0, -0.06
+    model = wall_model(dt, x0=x0)
+    data = thrown(model, speed)
+    guard = GuardedStepper(model, data, fit_model(model))
+    guard._reach = lambda hit: 0.9
+    report = guard.step()
+    entry = (-(WALL_HALF + BALL) - x0) / (speed * dt)
+    assert len(report.clamps) == 1 and report.clamps[0].fraction == pytest.approx(entry, abs=1e-3)
+    assert report.rollbacks == 2  # the trial, then the too-long clamp step
+    assert report.substeps[0] == pytest.approx((entry + guard.overshoot) * dt, abs=1e-3 * dt)
+    assert np.isclose(sum(report.substeps), dt, rtol=0, atol=1e-15)
+    assert not inside_wall(data.qpos) and data.qpos[0] < -WALL_HALF - 0.5 * BALL
+
+
 # ------------------------------------------------------------ the lean step check
 
 

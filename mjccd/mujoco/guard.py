@@ -74,6 +74,33 @@ def _bad_states(counts):
     return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
 
 
+def reach_fraction(tau, a):
+    """Fraction s of a step at which a shorter MuJoCo step from the same start reaches the contact that the
+    CCD found at fraction ``tau`` of the full step.
+
+    The CCD follows the straight interpolation of the step's two poses.  A MuJoCo step of s·dt from the same
+    start moves the joints by s·dt·(v0 + s·(v1 − v0)) (semi-implicit Euler: the acceleration comes from the
+    start state; v1 is the full step's end velocity), which along the full step's displacement dt·v1 is the
+    fraction a·s + (1 − a)·s² with ``a`` = v0·v1 / v1·v1.  Returns its smallest root in [0, 1] of that
+    fraction = tau: tau for a pair at constant velocity, √tau for one that starts from rest (a kick), less
+    than tau for one that slows down.
+    """
+    if tau <= 0.0:
+        return 0.0
+    root = np.sqrt(a * a + 4.0 * (1.0 - a) * tau)
+    # the same root in the form without cancellation for each sign of a
+    return min(2.0 * tau / (a + root) if a >= 0.0 else (root - a) / (2.0 * (1.0 - a)), 1.0)
+
+
+def _moving_dofs(model, body):
+    """The dofs whose motion moves ``body``: those of its joints and of its ancestors' joints."""
+    chain = []
+    while body > 0:
+        chain.append(body)
+        body = int(model.body_parentid[body])
+    return np.flatnonzero(np.isin(model.dof_bodyid, chain))
+
+
 class GuardedStepper:
     """MuJoCo stepping that never lets a guarded pair of bodies pass through each other within a step.
 
@@ -85,7 +112,9 @@ class GuardedStepper:
     mocap, time) is restored, MuJoCo advances with a reduced timestep to the
     first such contact (a hair past it, ``overshoot`` of the step, so that
     MuJoCo's own collision detection sees the touching pair and its contact
-    model takes over), takes one short step in contact (``contact_step`` of
+    model takes over; the reduced timestep allows for the pair's speeding up
+    or slowing down within the step, see :func:`reach_fraction`; a step
+    lengthened that way is checked too), takes one short step in contact (``contact_step`` of
     the timestep, where the contact removes most of the approach speed) and
     then the rest of the step, every piece checked again.  At most
     ``max_rechecks`` clamps per step; after that the remaining time is one
@@ -146,6 +175,7 @@ class GuardedStepper:
             # every other step costs
             self._fast.begin(data)
         self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
+        self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
         self._warnings_of, self._warnings = None, ()
         self.last_report = None
         self.clamps_total = 0
@@ -267,17 +297,35 @@ class GuardedStepper:
                     break
                 if hit is not None and len(clamps) < self.max_rechecks:
                     # a pair clamped again in the same step: the redone short step landed short of the
-                    # contact (the lerp that the CCD follows runs ahead of a shorter MuJoCo step when the
-                    # pair accelerates towards contact), so each repeat goes 4x further past the contact
+                    # contact (the lerp that the CCD follows and a shorter MuJoCo step still differ where
+                    # reach_fraction's model does not hold, e.g. turning joints or contact forces), so each
+                    # repeat goes 4x further past the contact
                     again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids)
-                    h = hit.fraction * length + self.overshoot * dt * 4.0 ** again
+                    past = self.overshoot * dt * 4.0 ** again
+                    reach = self._reach(hit)  # reads the piece's end velocities: before the rollback
+                    h = reach * length + past
                     clamps.append(hit)
                     if h < length:
                         # redo the trial: up to the contact, then a short step in contact
                         mujoco.mj_setState(m, d, self._state0, STATE_SPEC)
                         rollbacks += 1
-                        opt.timestep = h
-                        mujoco.mj_step(m, d)
+                        stepped = False
+                        if (reach - hit.fraction) * length > past:
+                            # speeding up: this step goes further beyond the part of the piece that its
+                            # check cleared than a clamp's own overshoot, so it is checked, and redone to
+                            # just past a contact it met early
+                            early = self._piece(h, False)
+                            if early is UNSTABLE:
+                                length, hit = h, UNSTABLE
+                                continue
+                            stepped = early is None or (1.0 - early.fraction) * h <= 2.0 * past
+                            if not stepped:
+                                mujoco.mj_setState(m, d, self._state0, STATE_SPEC)
+                                rollbacks += 1
+                                h = early.fraction * h + past
+                        if not stepped:
+                            opt.timestep = h
+                            mujoco.mj_step(m, d)
                         substeps.append(h)
                         if self._went_bad(bad):
                             unstable = True
@@ -304,6 +352,20 @@ class GuardedStepper:
             for c in clamps:
                 self.on_clamp(c)
         return self.last_report
+
+    def _reach(self, hit):
+        """:func:`reach_fraction` of ``hit`` in the piece just taken (from ``_state0`` to the data), from the
+        velocities of the joints that move its two bodies."""
+        dofs = self._pair_dofs.get(hit.body_ids)
+        if dofs is None:
+            dofs = self._pair_dofs[hit.body_ids] = np.union1d(*(_moving_dofs(self.model, b) for b in hit.body_ids))
+        nq = self.model.nq
+        v0 = self._state0[1 + nq:1 + nq + self.model.nv][dofs]
+        v1 = self.data.qvel[dofs]
+        speed = v1 @ v1
+        if speed == 0.0:
+            return hit.fraction
+        return reach_fraction(hit.fraction, (v0 @ v1) / speed)
 
     def _piece(self, length, follows):
         """Save the state, take one MuJoCo step of ``length`` seconds, and check it.

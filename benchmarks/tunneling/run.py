@@ -128,7 +128,8 @@ def markdown(rows, cells, runs, command, elapsed, peer_version=None):
              "\"k unstable\": in k runs MuJoCo met a NaN, infinite or huge position, velocity or acceleration "
              "and reset the simulation (its bad-state warnings); such a run did not tunnel only because it "
              "restarted.",
-             f"{runs} runs per cell with jittered start (position and speed ±10 %). "
+             f"{runs} runs per cell with jittered start (position and speed ±10 %), on one simulation per cell "
+             "(model, data and guard built once; each run resets the data, as an episode does). "
              "`dt/k` is plain MuJoCo with the timestep divided by k; `guarded` is "
              "`mjccd.mujoco.guard.GuardedStepper` at the scenario timestep, with the median number of "
              "clamps per run.",

@@ -81,9 +81,9 @@ def reach_fraction(tau, a):
     The CCD follows the straight interpolation of the step's two poses.  A MuJoCo step of s·dt from the same
     start moves the joints by s·dt·(v0 + s·(v1 − v0)) (semi-implicit Euler: the acceleration comes from the
     start state; v1 is the full step's end velocity), which along the full step's displacement dt·v1 is the
-    fraction a·s + (1 − a)·s² with ``a`` = v0·v1 / v1·v1.  Returns its smallest root in [0, 1] of that
-    fraction = tau: tau for a pair at constant velocity, √tau for one that starts from rest (a kick), less
-    than tau for one that slows down.
+    fraction a·s + (1 − a)·s² with ``a`` = v0·v1 / v1·v1.  Returns the smallest s in [0, 1] at which that
+    fraction reaches tau: tau for a pair at constant velocity, √tau for one that starts from rest (a kick),
+    less than tau for one that slows down.
     """
     if tau <= 0.0:
         return 0.0
@@ -320,6 +320,8 @@ class GuardedStepper:
                                 continue
                             stepped = early is None or (1.0 - early.fraction) * h <= 2.0 * past
                             if not stepped:
+                                if early.ellipsoids != hit.ellipsoids:  # another pair caused this clamp
+                                    clamps.append(early)
                                 mujoco.mj_setState(m, d, self._state0, STATE_SPEC)
                                 rollbacks += 1
                                 h = early.fraction * h + past

@@ -256,14 +256,10 @@ def chain_motion(model, geom_id, qpos0, qpos1):
     import mujoco
 
     from mjccd import Ball, Chain, Fixed, Free, Hinge, Slide
+    from mjccd.mujoco.motions import body_path
 
-    path = []
-    b = model.geom_bodyid[geom_id]
-    while b > 0:
-        path.append(b)
-        b = model.body_parentid[b]
     elements = []
-    for b in reversed(path):
+    for b in reversed(body_path(model, model.geom_bodyid[geom_id])):
         joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
         if not any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in joints):
             elements.append(Fixed(model.body_pos[b], model.body_quat[b]))

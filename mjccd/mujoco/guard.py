@@ -6,7 +6,7 @@ import numpy as np
 
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.monitor import CCDMonitor, StepCheck  # noqa: F401  (StepCheck re-exported)
-from mjccd.mujoco.motions import capture
+from mjccd.mujoco.motions import body_path, capture
 from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -94,11 +94,7 @@ def reach_fraction(tau, a):
 
 def _moving_dofs(model, body):
     """The dofs whose motion moves ``body``: those of its joints and of its ancestors' joints."""
-    chain = []
-    while body > 0:
-        chain.append(body)
-        body = int(model.body_parentid[body])
-    return np.flatnonzero(np.isin(model.dof_bodyid, chain))
+    return np.flatnonzero(np.isin(model.dof_bodyid, body_path(model, body)))
 
 
 class GuardedStepper:

@@ -315,15 +315,19 @@ class _Slide:
         return w_of_translation(np.ascontiguousarray(np.stack([self.axis * self.s0, self.axis * self.s1], axis=1)))
 
 
+def body_path(model, body):
+    """The bodies from ``body`` up to (not including) the world: the body, its parent, ... ."""
+    path = []
+    while body > 0:
+        path.append(int(body))
+        body = model.body_parentid[body]
+    return path
+
+
 def _body_elements(model, body, state0, state1, poses0, poses1):
     """Chain elements from the world down to a body's frame."""
-    path = []
-    b = body
-    while b != 0:
-        path.append(b)
-        b = model.body_parentid[b]
     elements = []
-    for b in reversed(path):
+    for b in reversed(body_path(model, body)):
         mocap = model.body_mocapid[b]
         if mocap >= 0:
             elements = [Free(poses0[0][b], poses0[1][b], poses1[0][b], poses1[1][b])]

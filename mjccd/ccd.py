@@ -725,7 +725,7 @@ def prepare_pair(PA, UA, sA, PB, UB, sB, length):
 
 
 @_jit
-def _same(q0, q1):
+def same_orientation(q0, q1):
     """True when two unit quaternions are one orientation up to rounding (see SAME_ORIENTATION)."""
     return (abs(q0[0] - q1[0]) <= SAME_ORIENTATION and abs(q0[1] - q1[1]) <= SAME_ORIENTATION
             and abs(q0[2] - q1[2]) <= SAME_ORIENTATION and abs(q0[3] - q1[3]) <= SAME_ORIENTATION)
@@ -744,7 +744,7 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
     external touch at t > 0.
     """
     length = max(ra.max(), rb.max())
-    if _same(qa0, qa1) and _same(qb0, qb1):  # both only translate (orientation q0): F of degree 2
+    if same_orientation(qa0, qa1) and same_orientation(qb0, qb1):  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
         translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)

@@ -24,7 +24,7 @@ from numba.extending import intrinsic
 
 from mjccd import _validate
 from mjccd import filters as fl
-from mjccd.ccd import exact_pair
+from mjccd.ccd import exact_pair, same_orientation
 from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -142,12 +142,16 @@ def _new_plane(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, cache_n, cache_kind,
     """Static tests and a new separating plane for pair k: the outcome code.
 
     ``scratch[:4]`` holds the centres relative to A's at t = 0 (from :func:`_filter_pair`).
+    A pair whose two ellipsoids only translate goes to the exact solver without a plane: its
+    solve (F of degree 2 in t) costs less than finding one separating plane.
     """
     ca0, ca1, cb0, cb1 = scratch[0], scratch[1], scratch[2], scratch[3]
     if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) <= 0:
         return OVERLAP_T0
     if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) <= 0:
         return EXACT_FREE  # certainly not separate at t = 1: straight to the exact solver
+    if same_orientation(q0[i], q1[i]) and same_orientation(q0[j], q1[j]):
+        return EXACT_FREE
     ok, plane, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca0, q0[i]),
                                                 quadric_matrix(radii[j], cb0, q0[j]))
     n0 = (plane[0], plane[1], plane[2])

@@ -344,7 +344,7 @@ def test_pure_translation_matches_the_general_path(affine):
 def test_a_quaternion_moved_by_rounding_is_solved_as_a_translation():
     """A ball in MuJoCo flight: its quaternion drifts by units in the last place each step.  The degree-2
     path takes it, and the answer is the general degree-18 path's for the same drifted motion."""
-    from mjccd.ccd import SAME_ORIENTATION, _same, solve_pair
+    from mjccd.ccd import SAME_ORIENTATION, same_orientation, solve_pair
 
     for seed in range(20):
         r = np.random.default_rng(500 + seed)
@@ -352,7 +352,7 @@ def test_a_quaternion_moved_by_rounding_is_solved_as_a_translation():
         qa, qb = random_quat(), random_quat()
         qa1 = qa + r.uniform(-0.5, 0.5, 4) * SAME_ORIENTATION
         moving = mjccd.Rigid(np.zeros(3), qa, np.zeros(3), qa1)
-        assert _same(moving.quaternion0, moving.quaternion1)  # after normalisation: the degree-2 path
+        assert same_orientation(moving.quaternion0, moving.quaternion1)  # after normalisation: the degree-2 path
         assert not np.array_equal(moving.quaternion0, moving.quaternion1)
         pa0, pb0 = np.array([-3.0, 0, 0]) + r.normal(size=3) * 0.1, r.normal(size=3) * 0.1
         pa1, pb1 = np.array([3.0, 0, 0]) + r.normal(size=3) * 0.1, pb0

@@ -122,6 +122,28 @@ def test_earliest_contact_bound_prunes_later_pairs():
     assert np.allclose(res.first.normal, [1, 0, 0], atol=1e-9)
 
 
+def test_pairs_that_only_translate_are_solved_without_a_plane():
+    """A thin slab and a ball that flies through it in the frame: the ends are separate (the ball is on the
+    other side at t = 1), so a turning pair would get a plane search; a translating one goes straight to
+    the exact solver, with the closed-form contact time, and one that stops short is solved and found free."""
+    radii = np.array([[0.01, 1.0, 1.0], [0.02, 0.02, 0.02]])
+    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [-0.1, 0, 0, 1, 0, 0, 0]], float)
+    p1 = p0.copy()
+    p1[1, 0] = 0.1
+    scene = Scene(radii)
+    res = scene.step(p0, p1)
+    assert res.counters.new_plane == 0 and res.counters.solved_exactly == 1
+    assert res.first.time == pytest.approx(0.07 / 0.2, abs=1e-12)  # gap 0.07 closed at 0.2 per frame
+    assert np.allclose(res.first.normal, [-1, 0, 0], atol=1e-9)
+    short = p1.copy()
+    short[1, 0] = -0.05  # stops 2 cm short of the slab (its face at -0.01, the ball's radius 0.02)
+    miss = scene.step(p0, short)
+    assert miss.first is None and miss.counters.new_plane == 0 and miss.counters.solved_exactly == 1
+    turning = short.copy()
+    turning[1, 3:] = [np.cos(0.1), np.sin(0.1), 0, 0]
+    assert scene.step(p0, turning).counters.new_plane == 1  # a ball that also turns: cleared by a plane
+
+
 def test_overlap_at_start_is_time_zero():
     radii = np.full((2, 3), 0.5)
     p = np.array([[0, 0, 0, 1, 0, 0, 0], [0.5, 0, 0, 1, 0, 0, 0]], float)

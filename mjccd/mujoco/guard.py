@@ -1,7 +1,9 @@
 """Guarded stepping: roll a MuJoCo step back to the exact first contact so fast bodies cannot tunnel."""
+import math
 from dataclasses import dataclass
 
 import mujoco
+import numba
 import numpy as np
 
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
@@ -74,6 +76,7 @@ def _bad_states(counts):
     return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
 
 
+@numba.njit(cache=True, nogil=True)
 def reach_fraction(tau, a):
     """Fraction s of a step at which a shorter MuJoCo step from the same start reaches the contact that the
     CCD found at fraction ``tau`` of the full step.
@@ -87,9 +90,23 @@ def reach_fraction(tau, a):
     """
     if tau <= 0.0:
         return 0.0
-    root = np.sqrt(a * a + 4.0 * (1.0 - a) * tau)
+    root = math.sqrt(a * a + 4.0 * (1.0 - a) * tau)
     # the same root in the form without cancellation for each sign of a
     return min(2.0 * tau / (a + root) if a >= 0.0 else (root - a) / (2.0 * (1.0 - a)), 1.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def pair_reach(tau, qvel0, qvel1, dofs):
+    """:func:`reach_fraction` of a contact at ``tau`` with ``a`` = v0·v1 / v1·v1 over ``dofs`` (the velocities
+    at the start and end of the step); ``tau`` itself when those dofs end the step at rest."""
+    dot = 0.0
+    speed = 0.0
+    for k in dofs:
+        dot += qvel0[k] * qvel1[k]
+        speed += qvel1[k] * qvel1[k]
+    if speed == 0.0:
+        return tau
+    return reach_fraction(tau, dot / speed)
 
 
 def _moving_dofs(model, body):
@@ -160,6 +177,7 @@ class GuardedStepper:
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
         # without mocap bodies the kinematic state is the positions, which follow the time in the full state
         self._qpos0 = self._state0[1:1 + model.nq] if model.nmocap == 0 else None
+        self._qvel0 = self._state0[1 + model.nq:1 + model.nq + model.nv]
         self._opt = model.opt
         # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
         self._fast = StepCheck(self.monitor) if self.monitor._scene is not None else None
@@ -357,13 +375,7 @@ class GuardedStepper:
         dofs = self._pair_dofs.get(hit.body_ids)
         if dofs is None:
             dofs = self._pair_dofs[hit.body_ids] = np.union1d(*(_moving_dofs(self.model, b) for b in hit.body_ids))
-        nq = self.model.nq
-        v0 = self._state0[1 + nq:1 + nq + self.model.nv][dofs]
-        v1 = self.data.qvel[dofs]
-        speed = v1 @ v1
-        if speed == 0.0:
-            return hit.fraction
-        return reach_fraction(hit.fraction, (v0 @ v1) / speed)
+        return pair_reach(hit.fraction, self._qvel0, self.data.qvel, dofs)
 
     def _piece(self, length, follows):
         """Save the state, take one MuJoCo step of ``length`` seconds, and check it.

@@ -251,13 +251,14 @@ class CCDMonitor:
                 self.on_contact(c)
         return report
 
-    def _seconds(self, s0, s1, fraction):
-        if s0.time is not None and s1.time is not None and s1.time > s0.time:
-            return s0.time + fraction * (s1.time - s0.time)
-        base = s0.time if s0.time is not None else 0.0
-        return base + fraction * self.model.opt.timestep
+    def _seconds(self, t0, t1, fraction):
+        """Simulation time at ``fraction`` of a step from ``t0`` to ``t1`` (either None: unknown)."""
+        if t0 is not None and t1 is not None and t1 > t0:
+            return t0 + fraction * (t1 - t0)
+        return (t0 if t0 is not None else 0.0) + fraction * self.model.opt.timestep
 
-    def _contact(self, s0, s1, i, j, fraction, point, normal, poses0):
+    def _contact(self, t0, t1, i, j, fraction, point, normal, poses0):
+        """The :class:`StepContact` of ellipsoids i, j at ``fraction`` of a step from time ``t0`` to ``t1``."""
         if point is None:
             r = self.ellipsoids.radii
             status = STATUS[int(static_status_pose(r[i], poses0[i, :3], poses0[i, 3:],
@@ -266,7 +267,7 @@ class CCDMonitor:
         else:
             status = "separate"
         a, b = int(self.body_ids[i]), int(self.body_ids[j])
-        return StepContact(float(self._seconds(s0, s1, fraction)), float(fraction),
+        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
                            (self.labels[a], self.labels[b]), (a, b), (int(i), int(j)),
                            None if point is None else np.array(point, float),
                            None if normal is None else np.array(normal, float), status)
@@ -281,7 +282,7 @@ class CCDMonitor:
 
         def convert(pc):
             i, j = self.pairs[pc.pair]
-            return self._contact(s0, s1, i, j, pc.time, pc.point, pc.normal, p0)
+            return self._contact(s0.time, s1.time, i, j, pc.time, pc.point, pc.normal, p0)
 
         first = None if frame.first is None else convert(frame.first)
         contacts = tuple(sorted((convert(c) for c in frame.contacts), key=lambda c: c.fraction))
@@ -309,7 +310,7 @@ class CCDMonitor:
                                 t_max=1.0 if self.all_pairs else t_max)
             if hit is None or (hit.status_at_start != "separate" and not self.report_overlapping):
                 continue
-            c = self._contact(s0, s1, i, j, hit.time, hit.point, hit.normal, p0)
+            c = self._contact(s0.time, s1.time, i, j, hit.time, hit.point, hit.normal, p0)
             contacts.append(c)
             if first is None or c.fraction < first.fraction:
                 first, t_max = c, c.fraction
@@ -433,15 +434,14 @@ class StepCheck:
             return None
         i, j = self.pairs[k]
         t0, t1 = (None, None) if times is None else times
-        return mon._contact(State(None, None, None, t0), State(None, None, None, t1), i, j, time, point,
-                            normal, p0)
+        return mon._contact(t0, t1, i, j, time, point, normal, p0)
 
     @staticmethod
     def _first_new(scene, p0, p1):
         """:meth:`Scene.step` ``(p0, p1, new_contacts_only=True)``'s first contact as (pair, time, point, normal).
 
         The same compiled kernel on the same buffers and plane cache, without the result objects
-        (pair -1 when there is none).
+        (pair -1 when there is none; point and normal are views of the scene's buffers).
         """
         q0_p, q0, q1_p, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = \
             scene._buffers
@@ -455,4 +455,4 @@ class StepCheck:
         t = float(times[k])
         if t == 0.0 and not normals[k].any():  # as Scene: no point or normal for a pair not separate at t = 0
             return int(k), t, None, None
-        return int(k), t, points[k].copy(), normals[k].copy()
+        return int(k), t, points[k], normals[k]

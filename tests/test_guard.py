@@ -297,6 +297,12 @@ def test_a_step_mujoco_resets_is_kept_and_not_checked():
     assert not guard.step().unstable  # the next step is an ordinary one
 
 
+def test_the_bad_state_counts_are_one_slice_of_the_warnings():
+    from mjccd.mujoco.guard import BAD_COUNTS, BAD_STATE_WARNINGS
+
+    assert sorted(int(w) for w in BAD_STATE_WARNINGS) == list(range(BAD_COUNTS.start, BAD_COUNTS.stop))
+
+
 @pytest.fixture
 def poison_short_steps():
     """Installs a control callback that makes the first MuJoCo step shorter than ``dt`` meet a NaN force."""

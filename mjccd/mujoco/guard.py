@@ -17,6 +17,7 @@ STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                       mujoco.mjtWarning.mjWARN_BADQACC)
 BAD_QPOS, BAD_QVEL, BAD_QACC = (int(w) for w in BAD_STATE_WARNINGS)
+BAD_COUNTS = slice(BAD_QPOS, BAD_QACC + 1)  # the three are adjacent in mjtWarning: one slice of the counts
 UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
 
 
@@ -71,9 +72,6 @@ def _positive(value, field, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
-def _bad_states(counts):
-    """How many bad-state warnings MuJoCo has raised, from its warning counts."""
-    return counts[BAD_QPOS] + counts[BAD_QVEL] + counts[BAD_QACC]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -190,7 +188,7 @@ class GuardedStepper:
             self._fast.begin(data)
         self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
         self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
-        self._warnings_of, self._warnings = None, ()
+        self._warnings_of, self._bad_counts = None, None
         self.last_report = None
         self.clamps_total = 0
 
@@ -237,8 +235,8 @@ class GuardedStepper:
         m, d = self.model, self.data
         state0 = self._state0
         mujoco.mj_getState(m, d, state0, STATE_SPEC)
-        counts = self._warnings if self._warnings_of is d else self._watch_warnings(d)
-        bad = _bad_states(counts)
+        counts = self._bad_counts if self._warnings_of is d else self._watch_warnings(d)
+        bad = counts.tobytes()
         fast = self._fast
         if fast is not None:  # the lean path: no Python-level state copies, one compiled prefilter call
             fast.begin(d, self._qpos0)
@@ -248,7 +246,7 @@ class GuardedStepper:
             mujoco.mj_step(m, d)
         else:
             full_step()
-        if _bad_states(counts) != bad or d.time <= state0[0]:  # _went_bad, inline on the hot path
+        if counts.tobytes() != bad or d.time <= state0[0]:  # _went_bad, inline on the hot path
             return self._unstable_trial(self._opt.timestep)
         if fast is not None:
             if not fast.end_may_touch(d):
@@ -266,18 +264,18 @@ class GuardedStepper:
         return self._clamped(hit, bad, finish)
 
     def _watch_warnings(self, d):
-        """MuJoCo's warning counts of ``d`` (a view, fetched once per data)."""
-        self._warnings_of, self._warnings = d, d.warning.number
-        return self._warnings
+        """MuJoCo's bad-state warning counts of ``d`` (a view, fetched once per data)."""
+        self._warnings_of, self._bad_counts = d, d.warning.number[BAD_COUNTS]
+        return self._bad_counts
 
     def _went_bad(self, bad):
         """True when the MuJoCo step just taken (from the saved state) met a bad state.
 
-        ``bad``: the bad-state warning count before it.  A reset clears the counts and then counts
-        its own warning, so a repeated reset can leave the sum as it was; it also sets the time
-        back to 0, so the step then ends no later than it began.
+        ``bad``: the bytes of the bad-state warning counts before it.  A reset clears the counts and
+        then counts its own warning, so a repeated reset can leave them as they were; it also sets the
+        time back to 0, so the step then ends no later than it began.
         """
-        return _bad_states(self._warnings) != bad or self.data.time <= self._state0[0]
+        return self._bad_counts.tobytes() != bad or self.data.time <= self._state0[0]
 
     def _unstable_trial(self, dt):
         """The report of a step whose trial MuJoCo found unstable (and reset): kept as it is, unchecked."""
@@ -294,7 +292,8 @@ class GuardedStepper:
     def _clamped(self, hit, bad, finish):
         """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece.
 
-        ``bad``: MuJoCo's bad-state warning count before the step; a piece that raises it ends the step.
+        ``bad``: MuJoCo's bad-state warning counts before the step (bytes); a piece that raises one ends
+        the step.
         """
         m, d = self.model, self.data
         opt = self._opt
@@ -391,7 +390,7 @@ class GuardedStepper:
             start = None
         else:
             start = self._begin(d)
-        bad = _bad_states(self._warnings)
+        bad = self._bad_counts.tobytes()
         self._opt.timestep = length
         mujoco.mj_step(m, d)
         if self._went_bad(bad):

@@ -339,8 +339,11 @@ class StepCheck:
         n = len(monitor.ellipsoids.radii)
         size = mujoco.mj_stateSize(m, KINEMATIC_STATE)
         self._key = np.empty(size)
-        # slot: [private data, key bytes of its state (None: empty), poses]
-        self._slots = [[mujoco.MjData(m), None, np.empty((n, 7))] for _ in range(2)]
+        # without mocap bodies the kinematic state is the joint positions: copied as an array, not through
+        # mj_getState / mj_setState
+        self._qpos_only = m.nmocap == 0
+        # slot: [private data, key bytes of its state (None: empty), poses, the private data's qpos]
+        self._slots = [[kd, None, np.empty((n, 7)), kd.qpos] for kd in (mujoco.MjData(m), mujoco.MjData(m))]
         for slot in self._slots:  # touch each private data's memory once, here rather than in a first step
             mujoco.mj_kinematics(m, slot[0])
         # the body poses of each private data (MjData arrays are views of its own memory: fetched once)
@@ -356,16 +359,24 @@ class StepCheck:
         self.affine = monitor.motion == "affine"
         self.min_motion = monitor._scene.min_motion  # shared with the exact check: one setting for both
 
+    def _state_of(self, data):
+        """The kinematic state of ``data`` (``KINEMATIC_STATE`` layout; a view of its qpos when that is all)."""
+        if self._qpos_only:
+            return data.qpos
+        mujoco.mj_getState(self.model, data, self._key, KINEMATIC_STATE)
+        return self._key
+
     def _key_of(self, data):
-        key = self._key
-        mujoco.mj_getState(self.model, data, key, KINEMATIC_STATE)
-        return key.tobytes()
+        return self._state_of(data).tobytes()
 
     def _fill(self, idx, kb, state):
         """Private data ``idx`` set to the kinematic ``state`` (whose bytes are ``kb``), kinematics run."""
         slot = self._slots[idx]
         kd = slot[0]
-        mujoco.mj_setState(self.model, kd, state, KINEMATIC_STATE)
+        if self._qpos_only:
+            slot[3][:] = state
+        else:
+            mujoco.mj_setState(self.model, kd, state, KINEMATIC_STATE)
         mujoco.mj_kinematics(self.model, kd)
         slot[1] = kb
         return kd
@@ -384,9 +395,8 @@ class StepCheck:
         (the guard reads it off its saved full state), else it is read from ``data``.
         """
         if state is None:
-            kb, state = self._key_of(data), self._key
-        else:
-            kb = state.tobytes()
+            state = self._state_of(data)
+        kb = state.tobytes()
         slots = self._slots
         if slots[self._end][1] == kb:
             self._start = self._end
@@ -399,14 +409,15 @@ class StepCheck:
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call
         when the end state is new)."""
-        kb = self._key_of(data)
+        state = self._state_of(data)
+        kb = state.tobytes()
         slots = self._slots
         start = self._start
         if slots[start][1] == kb:
             self._end = start
             return self.may_touch()
         idx = 1 - start
-        self._fill(idx, kb, self._key)
+        self._fill(idx, kb, state)
         self._end = idx
         xpos, xquat = self._xposes[idx]
         return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, self.radii, self.rmax,

@@ -186,7 +186,7 @@ class GuardedStepper:
             # the first step's setup, done here: the current poses recorded, so the first step costs what
             # every other step costs
             self._fast.begin(data)
-        self._plain = {}  # timestep -> the report of an unclamped step (immutable, shared)
+        self._plain_last = GuardReport((float(model.opt.timestep),), (), 0, False)  # an unclamped step's (shared)
         self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
         self._warnings_of, self._bad_counts = None, None
         self.last_report = None
@@ -206,13 +206,6 @@ class GuardedStepper:
         return self.last_report
 
     # ------------------------------------------------------------ checks
-
-    def _begin(self, d):
-        """Record the start of a piece whose state was just saved into ``_state0``."""
-        if self._fast is not None:
-            self._fast.begin(d, self._qpos0)
-            return None
-        return capture(d)
 
     def _hit(self, d, start):
         """Earliest new contact of the step just taken (from ``start``), or None."""
@@ -284,9 +277,9 @@ class GuardedStepper:
 
     def _plain_report(self, dt):
         """The shared report of an unclamped step of ``dt`` seconds."""
-        report = self._plain.get(dt)
-        if report is None:
-            report = self._plain[dt] = GuardReport((float(dt),), (), 0, False)
+        report = self._plain_last
+        if report.substeps[0] != dt:
+            report = self._plain_last = GuardReport((float(dt),), (), 0, False)
         return report
 
     def _clamped(self, hit, bad, finish):
@@ -313,7 +306,7 @@ class GuardedStepper:
                     # contact (the lerp that the CCD follows and a shorter MuJoCo step still differ where
                     # reach_fraction's model does not hold, e.g. turning joints or contact forces), so each
                     # repeat goes 4x further past the contact
-                    again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids)
+                    again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids) if clamps else 0
                     past = self.overshoot * dt * 4.0 ** again
                     reach = self._reach(hit)  # reads the piece's end velocities: before the rollback
                     h = reach * length + past
@@ -383,13 +376,15 @@ class GuardedStepper:
         or stepped since), so the lean check reuses its poses without reading the state again.
         Returns the earliest new contact, None, or ``UNSTABLE`` when MuJoCo found the step unstable.
         """
-        m, d = self.model, self.data
+        m, d, fast = self.model, self.data, self._fast
         mujoco.mj_getState(m, d, self._state0, STATE_SPEC)
-        if follows and self._fast is not None:
-            self._fast.follow()
-            start = None
+        start = None
+        if fast is None:
+            start = capture(d)
+        elif follows:
+            fast.follow()
         else:
-            start = self._begin(d)
+            fast.begin(d, self._qpos0)
         bad = self._bad_counts.tobytes()
         self._opt.timestep = length
         mujoco.mj_step(m, d)

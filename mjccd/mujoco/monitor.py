@@ -356,6 +356,7 @@ class StepCheck:
         self.radii = np.ascontiguousarray(monitor.ellipsoids.radii, dtype=float)
         self.rmax = np.ascontiguousarray(self.radii.max(axis=1))
         self.pairs = np.ascontiguousarray(monitor.pairs, dtype=np.int64)
+        self._pair_list = [(int(i), int(j)) for i, j in self.pairs]  # the same as Python ints, for results
         self.affine = monitor.motion == "affine"
         self.min_motion = monitor._scene.min_motion  # shared with the exact check: one setting for both
 
@@ -443,7 +444,7 @@ class StepCheck:
         k, time, point, normal = self._first_new(mon._scene, p0, p1)
         if k < 0:
             return None
-        i, j = self.pairs[k]
+        i, j = self._pair_list[k]
         t0, t1 = (None, None) if times is None else times
         return mon._contact(t0, t1, i, j, time, point, normal, p0)
 

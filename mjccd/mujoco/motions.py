@@ -188,18 +188,12 @@ def _thin_axis(radii, pose, e):
 def _in_contact_at_start(radii, p0, i, j):
     """Static status of pair (i, j) at t = 0 is touching or overlapping, decided exactly as
     :meth:`mjccd.scene.Scene.step` decides it (same normalisation of the quaternions, same test)."""
-    pa = np.empty(3)
-    pb = np.empty(3)
-    qa = np.empty(4)
-    qb = np.empty(4)
     na = np.sqrt(p0[i, 3] ** 2 + p0[i, 4] ** 2 + p0[i, 5] ** 2 + p0[i, 6] ** 2)
     nb = np.sqrt(p0[j, 3] ** 2 + p0[j, 4] ** 2 + p0[j, 5] ** 2 + p0[j, 6] ** 2)
-    for m in range(3):
-        pa[m] = p0[i, m]
-        pb[m] = p0[j, m]
-    for m in range(4):
-        qa[m] = p0[i, 3 + m] / na
-        qb[m] = p0[j, 3 + m] / nb
+    pa = (p0[i, 0], p0[i, 1], p0[i, 2])  # tuples: nothing allocated
+    pb = (p0[j, 0], p0[j, 1], p0[j, 2])
+    qa = (p0[i, 3] / na, p0[i, 4] / na, p0[i, 5] / na, p0[i, 6] / na)
+    qb = (p0[j, 3] / nb, p0[j, 4] / nb, p0[j, 5] / nb, p0[j, 6] / nb)
     return static_status_pose(radii[i], pa, qa, radii[j], pb, qb) <= 0
 
 

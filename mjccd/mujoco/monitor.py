@@ -410,7 +410,7 @@ class StepCheck:
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call
         when the end state is new)."""
-        state = self._state_of(data)
+        state = data.qpos if self._qpos_only else self._state_of(data)
         kb = state.tobytes()
         slots = self._slots
         start = self._start

@@ -167,7 +167,7 @@ def markdown(rows, cells, runs, command, elapsed, peer_version=None):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=10, help="runs per cell (default 10)")
+    ap.add_argument("--runs", type=int, default=20, help="runs per cell (default 20)")
     ap.add_argument("--quick", action="store_true", help="one timestep and speed per scenario")
     default_peer = os.environ.get("MJCCD_MUJOCO4_PYTHON") or (
         str(DEFAULT_MUJOCO4) if DEFAULT_MUJOCO4.exists() else "")

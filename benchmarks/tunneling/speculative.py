@@ -34,7 +34,7 @@ def simulate(cls, dt, speed, speculative, runs):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=10, help="runs per cell (default 10)")
+    ap.add_argument("--runs", type=int, default=20, help="runs per cell (default 20)")
     ap.add_argument("--quick", action="store_true", help="one timestep and speed per scenario")
     args = ap.parse_args(argv)
     if args.runs < 1:

@@ -81,3 +81,25 @@ def test_a_kick_from_rest_tunnels_plain_mujoco_but_not_the_guard():
     for seed in range(3):  # one simulation, reset between runs: no state of a run leaks into the next
         tunneled, _, unstable = guarded.run(seed)
         assert not tunneled and not unstable
+
+
+def test_the_boxing_spin_gain_is_one_for_a_free_swing_and_is_reported():
+    """The arm's peak angular speed over its swing speed: 1 while nothing touches it (the first steps of a
+    swing, before the fist reaches the head), larger once a contact has spun it up; run.py reports it."""
+    sys.path.insert(0, str(HERE))
+    import numpy as np
+    import run
+    from scenarios import Boxing
+
+    sc = Boxing(1 / 120, speed=5.0)
+    data = mujoco.MjData(sc.model)
+    sc.reset(data, np.random.default_rng(0))
+    for _ in range(2):  # 2 steps at 5 m/s: the fist is still on its way
+        mujoco.mj_step(sc.model, data)
+        assert not sc.tunneled(data)
+    assert sc.spin_gain() == pytest.approx(1.0, abs=0.02)
+    data.qvel[sc._dof:sc._dof + 3] *= 3.0
+    sc.tunneled(data)
+    assert sc.spin_gain() == pytest.approx(3.0, rel=0.02)
+    lines = run.spin_lines({("boxing", 1 / 120, 5.0, "plain"): 1.0, ("boxing", 1 / 120, 5.0, "guarded"): 3.4})
+    assert "5 m/s: plain 1, guarded 3.4" in lines[-1]

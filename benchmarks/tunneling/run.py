@@ -33,8 +33,9 @@ DEFAULT_MUJOCO4 = ROOT / ".venv-mujoco4" / "bin" / "python"
 
 
 def simulate(cls, dt, speed, mode, runs):
-    """[(tunneled, seconds of CPU per simulated second, clamps, unstable)] of ``runs`` runs (seeds 0, 1, ...)
-    on one simulation (see scenarios.Episodes): one model, one data and, guarded, one GuardedStepper."""
+    """[(tunneled, seconds of CPU per simulated second, clamps, unstable, spin gain)] of ``runs`` runs (seeds 0,
+    1, ...) on one simulation (see scenarios.Episodes): one model, one data and, guarded, one GuardedStepper.
+    The spin gain (boxing only, else None) is the swung arm's peak angular speed over its swing speed."""
     sc = cls(dt / DIVISOR[mode], speed=speed)
     guard = None
 
@@ -48,7 +49,8 @@ def simulate(cls, dt, speed, mode, runs):
     for seed in range(runs):
         before = guard.clamps_total if guard else 0
         tunneled, cost, unstable = episodes.run(seed)
-        results.append((tunneled, cost, (guard.clamps_total if guard else 0) - before, unstable))
+        gain = sc.spin_gain() if hasattr(sc, "spin_gain") else None
+        results.append((tunneled, cost, (guard.clamps_total if guard else 0) - before, unstable, gain))
     return results
 
 
@@ -59,8 +61,9 @@ def cell(tunneled, runs, cost, unstable, note=""):
 
 
 def table(runs, cases):
-    """Rows of formatted cells, and {(scenario, dt, speed, mode): (runs tunneled, median ms per simulated second)}."""
-    rows, cells = [], {}
+    """Rows of formatted cells, {(scenario, dt, speed, mode): (runs tunneled, median ms per simulated second)}
+    and, for boxing, {(scenario, dt, speed, mode): median spin gain}."""
+    rows, cells, gains = [], {}, {}
     for cls, dt, speeds in cases:
         simulate(cls, dt, speeds[0], "guarded", 1)  # compile the kernels
         for speed in speeds:
@@ -70,12 +73,14 @@ def table(runs, cases):
                 tun = sum(r[0] for r in res)
                 cost = np.median([r[1] for r in res]) * 1e3
                 cells[cls.name, dt, speed, mode] = (tun, cost)
+                if res[0][4] is not None:
+                    gains[cls.name, dt, speed, mode] = np.median([r[4] for r in res])
                 clamps = np.median([r[2] for r in res])
                 note = f"{clamps:g} clamp" + ("" if clamps == 1 else "s") if mode == "guarded" else ""
                 row.append(cell(tun, runs, cost, sum(r[3] for r in res), note))
             rows.append(row)
             print(" | ".join(row), flush=True)
-    return rows, cells
+    return rows, cells, gains
 
 
 def peer_records(python, runs, quick):
@@ -112,7 +117,20 @@ def peer_summary(cells, runs):
                 "contacts cost."]
 
 
-def markdown(rows, cells, runs, command, elapsed, peer_version=None):
+def spin_lines(gains):
+    """Lines giving the boxing arm's median spin gain per speed and mode."""
+    speeds = sorted({k[:3] for k in gains}, key=lambda k: k[2])
+    if not speeds:
+        return []
+    parts = ["; ".join(f"{speed:g} m/s: " + ", ".join(f"{mode} {gains[(name, dt, speed, mode)]:.2g}"
+                                                       for mode in MODES if (name, dt, speed, mode) in gains)
+                       for name, dt, speed in speeds)]
+    return ["", "Boxing, the swung arm's peak angular speed over its swing speed (median of the runs; above 1 "
+                "the contact added energy to the swing): " + parts[0] + ". See guarded-stepping.md, "
+                "\"What it does not guarantee\"."]
+
+
+def markdown(rows, cells, runs, command, elapsed, peer_version=None, gains=None):
     head = ["scenario", "dt (ms)", "speed (m/s)"] + list(MODES)
     peer_text = []
     if peer_version:
@@ -157,6 +175,7 @@ def markdown(rows, cells, runs, command, elapsed, peer_version=None):
         dt, speed, ratio = min(ratios, key=lambda r: r[1])
         lines += ["", f"Boxing at the normal speed ({speed:g} m/s): guarded stepping costs "
                       f"{ratio:.2f}x plain stepping."]
+    lines += spin_lines(gains or {})
     if peer_version:
         lines += peer_summary(cells, runs)
     lines += ["", f"Command: `{command}` ({elapsed:.0f} s).", "",
@@ -185,14 +204,14 @@ def main(argv=None):
     if args.mujoco4 and not pathlib.Path(args.mujoco4).exists():
         ap.error(f"--mujoco4: no Python at {args.mujoco4} (make tunneling sets one up in .venv-mujoco4)")
     t0 = time.perf_counter()
-    rows, cells = table(args.runs, cases)
+    rows, cells, gains = table(args.runs, cases)
     peer_version = None
     if args.mujoco4:
         peer = peer_records(args.mujoco4, args.runs, args.quick)
         add_peer(rows, cells, peer)
         peer_version = next(iter(peer.values()))["mujoco"]
     text = markdown(rows, cells, args.runs, "python benchmarks/tunneling/run.py " + " ".join(argv or sys.argv[1:]),
-                    time.perf_counter() - t0, peer_version)
+                    time.perf_counter() - t0, peer_version, gains)
     print(text)
     if args.out:
         pathlib.Path(args.out).write_text(text)

@@ -282,6 +282,7 @@ class Boxing(Scenario):
         data.qvel[dof:dof + 3] = R.T @ (axis * omega)
         self._axis_world, self._shoulder = axis, shoulder.copy()
         self._touched = False
+        self._dof, self._swing, self._peak = dof, omega, omega
         mujoco.mj_forward(m, data)
 
     def ellipsoids(self):
@@ -290,9 +291,15 @@ class Boxing(Scenario):
 
     pairs = (("a_RightForeArm", "b_Head"), ("a_RightHand", "b_Head"))
 
+    def spin_gain(self):
+        """The arm's peak angular speed so far (seen by :meth:`tunneled`, once per step) over its swing speed:
+        above 1 the contact has added energy to the swing."""
+        return self._peak / self._swing
+
     def tunneled(self, data):
         """The fist swung past the head's centre before MuJoCo ever saw the arm touch the head."""
         m = self.model
+        self._peak = max(self._peak, float(np.linalg.norm(data.qvel[self._dof:self._dof + 3])))
         head = m.geom("b_Head_bound").id
         for c in data.contact[:data.ncon]:
             if head in (c.geom1, c.geom2):

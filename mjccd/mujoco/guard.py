@@ -72,8 +72,6 @@ def _positive(value, field, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
-
-
 @numba.njit(cache=True, nogil=True)
 def reach_fraction(tau, a):
     """Fraction s of a step at which a shorter MuJoCo step from the same start reaches the contact that the

@@ -142,7 +142,7 @@ def test_start_poses_are_read_off_the_saved_state():
         assert guard.clamps_total >= 1
         if reads_saved:
             mujoco.mj_getState(model, data, guard._state0, STATE_SPEC)
-            assert guard._qpos0.tobytes() == guard._fast._key_of(data)
+            assert guard._qpos0.tobytes() == guard._fast._state_of(data).tobytes()
 
 
 def test_max_rechecks_zero_only_reports():

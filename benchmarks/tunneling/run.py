@@ -49,8 +49,7 @@ def simulate(cls, dt, speed, mode, runs):
     for seed in range(runs):
         before = guard.clamps_total if guard else 0
         tunneled, cost, unstable = episodes.run(seed)
-        gain = sc.spin_gain() if hasattr(sc, "spin_gain") else None
-        results.append((tunneled, cost, (guard.clamps_total if guard else 0) - before, unstable, gain))
+        results.append((tunneled, cost, (guard.clamps_total if guard else 0) - before, unstable, sc.spin_gain()))
     return results
 
 

@@ -79,6 +79,10 @@ class Scenario:
         """True when the current state shows a body gone through the obstacle."""
         raise NotImplementedError
 
+    def spin_gain(self):
+        """How much the contact spun a swung body up (boxing only; None where it does not apply)."""
+        return None
+
 
 class Wall(Scenario):
     """(a) Ball at a thin wall: tunneled when the ball centre is ever beyond the wall's mid-plane."""

@@ -304,7 +304,7 @@ class GuardedStepper:
                     # contact (the lerp that the CCD follows and a shorter MuJoCo step still differ where
                     # reach_fraction's model does not hold, e.g. turning joints or contact forces), so each
                     # repeat goes 4x further past the contact
-                    again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids) if clamps else 0
+                    again = sum(1 for c in clamps if c.ellipsoids == hit.ellipsoids)
                     past = self.overshoot * dt * 4.0 ** again
                     reach = self._reach(hit)  # reads the piece's end velocities: before the rollback
                     h = reach * length + past

@@ -367,9 +367,6 @@ class StepCheck:
         mujoco.mj_getState(self.model, data, self._key, KINEMATIC_STATE)
         return self._key
 
-    def _key_of(self, data):
-        return self._state_of(data).tobytes()
-
     def _fill(self, idx, kb, state):
         """Private data ``idx`` set to the kinematic ``state`` (whose bytes are ``kb``), kinematics run."""
         slot = self._slots[idx]
@@ -410,7 +407,7 @@ class StepCheck:
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call
         when the end state is new)."""
-        state = data.qpos if self._qpos_only else self._state_of(data)
+        state = self._state_of(data)
         kb = state.tobytes()
         slots = self._slots
         start = self._start

@@ -32,7 +32,7 @@ from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz
-from mjccd.motion import (Affine, Motion, Rigid, quadric_affine, quadric_at, rigid_scaled_into,
+from mjccd.motion import (Affine, Motion, Rigid, Static, quadric_affine, quadric_at, rigid_scaled_into,
                           translation_scaled_into)
 from mjccd.quadric import (STATUS_NAMES, TOUCH_ULPS, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
                            touching_point)
@@ -46,6 +46,9 @@ MAX_BOXES = 200000
 MAX_MARCH = 2000
 CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact quartic maximum
 MAX_INTERVALS = 100000
+TOUCH_SPAN = 1e-6        # time resolution of a tangential contact (the square root of the rounding band)
+PIECE_RATIO = 4.0        # a piece of time on which every motion's positive factor varies at most this much
+MAX_PIECE_DEPTH = 10
 # relative rounding noise of F's coefficients (construction and evaluation)
 NOISE = 256 * 2.220446049250313e-16
 # Two unit quaternions that differ by at most this in every component are one orientation.  MuJoCo's
@@ -312,9 +315,11 @@ def _polish_contact(F, t, u, t_max):
 def shoot_first_contact(F, Fabs, noise, t_start, t_max):
     """Earliest contact in [t_start, t_max] by recursive Bézier shoots.
 
-    Requires the pair to be separate at t_start.  Returns (time, u) of the
-    contact (State ~ 0 there), or (-1, 0) when separation is certified over
-    the whole interval.
+    Requires the pair to be separate at t_start.  Returns (time, u, certified):
+    the contact (State ~ 0 there), or time -1 when separation is certified
+    over the whole interval.  When the shoots run out (MAX_SHOOTS) the pair
+    is certified separate only up to the returned time, ``certified`` is
+    False, and the first contact, if any, lies in [time, t_max].
     """
     t = t_start
     _, _, u = status_at(F, Fabs, noise, t)
@@ -330,13 +335,15 @@ def shoot_first_contact(F, Fabs, noise, t_start, t_max):
         t_new = t + r * (t_max - t)
         code, _, u_new = status_at(F, Fabs, noise, t_new)
         if code != 1 or t_new <= t:
-            return _polish_contact(F, t_new, u_new, t_max), u_new
+            return _polish_contact(F, t_new, u_new, t_max), u_new, True
         t, u = t_new, u_new
+    else:
+        return t, u, False
     # certified separate up to t_max; a touch exactly at t_max still counts
     code, _, u_end = status_at(F, Fabs, noise, t_max)
     if code != 1:
-        return t_max, u_end
-    return -1.0, 0.0
+        return t_max, u_end, True
+    return -1.0, 0.0, True
 
 
 # ---------------------------------------------------------------- end of an overlap
@@ -515,7 +522,7 @@ def search_exit(F, Fabs, noise, t_start, t_end):
     """
     t_exit, reached = _march_exit(F, Fabs, noise, t_start, t_end)
     if t_exit >= 0.0:
-        return t_exit
+        return t_exit, True
     t_start = reached
     Cr = bz.bivariate_restrict_t(F, t_start, t_end)
     boxes = List()
@@ -532,7 +539,7 @@ def search_exit(F, Fabs, noise, t_start, t_end):
         if _certified_negative(C):
             continue
         if count > MAX_BOXES:
-            return t0
+            return t0, False
         width = t1 - t0
         # Bézier clipping in t: F(u, t) <= sum_j max_i C[i, j] B_j(t), so when that
         # column-wise upper bound starts negative, F < 0 up to its first root.
@@ -555,7 +562,7 @@ def search_exit(F, Fabs, noise, t_start, t_end):
         if width <= EXIT_BOX_TOL:
             code, gmax, _ = status_at(F, Fabs, noise, t1)
             if gmax >= 0.0:
-                return _bisect_sign(F, t0, t1, True)
+                return _bisect_sign(F, t0, t1, True), True
             continue
         span_t = 0.0
         span_u = 0.0
@@ -575,57 +582,103 @@ def search_exit(F, Fabs, noise, t_start, t_end):
         boxes.append(b)
         ends.append(t1)
         heapq.heappush(heap, (b_start, len(boxes) - 1))
-    return 2.0
+    return 2.0, True
 
 
 @_jit
 def _step_off(F, Fabs, noise, t, t_end):
-    """Status just after a contact instant t: the first probe t + 1e-13 * 2^k that is decided.
+    """Status just after a contact instant t: the first decided probe t + 1e-13 * 2^k.
 
-    Returns (probe, status code); code 0 when still undecided at 1e-6 or at t_end.
+    Returns (probe, status code, last undecided probe).  A pair whose State
+    stays inside the rounding band is touching (no clearance or penetration
+    a double can show), so the probes go on doubling past the tangential
+    resolution (1e-6) until one is decided or t_end is reached (code 0): a
+    stretch of touching, e.g. two bodies that touch for the whole step.
     """
     eps = 1e-13
-    while eps < 1e-6:
-        tp = t + eps
-        if tp > t_end:
-            break
+    last = t
+    while True:
+        tp = min(t + eps, t_end)
         code, _, _ = status_at(F, Fabs, noise, tp)
-        if code != 0:
-            return tp, code
+        if code != 0 or tp >= t_end:
+            return tp, code, last
+        last = tp
         eps *= 2.0
-    return min(t + eps, t_end), 0
+
+
+@_jit
+def _end_of_touch(F, Fabs, noise, lo, hi):
+    """Last touching time between ``lo`` (touching) and ``hi`` (separate): bisection on the decided status."""
+    for _ in range(60):
+        if hi - lo <= 4.0 * 2.220446049250313e-16 * max(1.0, hi):
+            break
+        mid = 0.5 * (lo + hi)
+        code, _, _ = status_at(F, Fabs, noise, mid)
+        if code == 1:
+            hi = mid
+        else:
+            lo = mid
+    return lo
+
+
+@_jit
+def _leave_contact(F, Fabs, noise, t_in, t_max):
+    """From a contact instant t_in: (t_out, t_sep, certified).
+
+    t_out ends the non-separate stretch (overlaps that follow each other
+    without a separate probe between them are one stretch); t_sep is a
+    separate time right after it, where the next shoot starts (t_max when
+    the stretch reaches it).  ``certified`` is False when the overlap search
+    hit its limit: then t_out is only a lower bound of the exit.
+    """
+    t_out = t_in
+    while True:
+        probe, code, last = _step_off(F, Fabs, noise, t_out, t_max)
+        if code == 1:
+            if last - t_out > TOUCH_SPAN:  # touching for longer than a graze: up to somewhere in (last, probe)
+                t_out = _end_of_touch(F, Fabs, noise, last, probe)
+            elif t_out == t_in and state(F, t_in)[0] < 0.0:  # an overlap too short for the probes
+                t_out = _bisect_sign(F, t_in, probe, True)
+            return t_out, probe, True
+        if code == 0:
+            return t_max, t_max, True
+        t_exit, certified = search_exit(F, Fabs, noise, probe, t_max)
+        t_out = min(t_exit, t_max)
+        if not certified or t_out >= t_max:
+            return t_out, t_max, certified
 
 
 @_jit
 def solve_intervals(F, Fabs, noise, t_max, first_only):
     """All maximal non-separation intervals in [0, t_max] (just the first with ``first_only``).
 
-    Returns (status_at_start, intervals (k, 2), u at the first contact).
+    Returns (status_at_start, intervals (k, 2), u at the first contact,
+    certified, bracket_lo, bracket_hi).  ``certified`` is False when a limit
+    of the search (shoots, boxes, intervals) was reached: then every possible
+    first contact lies in [bracket_lo, bracket_hi], and the intervals found so
+    far are exact.  When certified, the bracket is the first contact itself
+    (or [-1, -1] when there is none).
     """
     out = np.empty((64, 2))
     k = 0
+    certified = True
     status0, _, u_first = status_at(F, Fabs, noise, 0.0)
     if status0 == 1:
-        t_in, u_first = shoot_first_contact(F, Fabs, noise, 0.0, t_max)
+        t_in, u_first, certified = shoot_first_contact(F, Fabs, noise, 0.0, t_max)
+        if not certified:
+            return status0, out[:0], u_first, False, t_in, t_max
         if t_in < 0.0:
-            return status0, out[:0], u_first
+            return status0, out[:0], u_first, True, -1.0, -1.0
     else:
         t_in = 0.0
+    first = t_in
     for _ in range(MAX_INTERVALS):
         if first_only:
             out[0, 0] = t_in
             out[0, 1] = t_in
             k = 1
             break
-        # leave the contact instant: is it an overlap, or only a touch?
-        probe, code = _step_off(F, Fabs, noise, t_in, t_max)
-        if code == -1:
-            t_out = min(search_exit(F, Fabs, noise, probe, t_max), t_max)
-        elif code == 1:
-            gmax, _ = state(F, t_in)
-            t_out = t_in if gmax >= 0.0 else _bisect_sign(F, t_in, probe, True)
-        else:
-            t_out = probe
+        t_out, t_sep, certified = _leave_contact(F, Fabs, noise, t_in, t_max)
         if k > 0 and t_in - out[k - 1, 1] <= 1e-12:  # touching the previous one: merge
             out[k - 1, 1] = t_out
         else:
@@ -636,42 +689,17 @@ def solve_intervals(F, Fabs, noise, t_max, first_only):
             out[k, 0] = t_in
             out[k, 1] = t_out
             k += 1
-        if t_out >= t_max:
+        if not certified or t_sep >= t_max:
             break
-        t, code = _step_off(F, Fabs, noise, t_out, t_max)
-        if t >= t_max:
+        t_in, _, certified = shoot_first_contact(F, Fabs, noise, t_sep, t_max)
+        if not certified or t_in < 0.0:
             break
-        if code == -1:  # overlapping again right away: same interval continues
-            t_in = out[k - 1, 0]
-            k -= 1
-            t_out2 = min(search_exit(F, Fabs, noise, t, t_max), t_max)
-            out[k, 1] = t_out2
-            k += 1
-            if t_out2 >= t_max:
-                break
-            continue
-        t_in, _ = shoot_first_contact(F, Fabs, noise, t, t_max)
-        if t_in < 0.0:
-            break
-    return status0, out[:k], u_first
+    else:
+        certified = False
+    return status0, out[:k], u_first, certified, first, first
 
 
 # ---------------------------------------------------------------- Python layer
-
-
-@dataclass(frozen=True)
-class Contact:
-    """First contact of two moving ellipsoids.
-
-    ``time`` is normalised to [0, 1]; ``point`` (world) and ``normal`` (unit,
-    outward from the first ellipsoid) describe the touch; they are None when
-    the pair already touches or overlaps at the start (``time == 0``).
-    """
-
-    time: float
-    point: object
-    normal: object
-    status_at_start: str
 
 
 @_jit
@@ -732,23 +760,27 @@ def same_orientation(q0, q1):
 
 
 @_jit
-def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
-    """Exact CCD of two ellipsoids moving between two poses: (status at start, intervals (k, 2), point, normal).
+def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+    """Exact CCD of two ellipsoids that each move between two poses.
 
-    ``affine`` picks the motion model between the poses (rigid: centre and
-    quaternion lerp; affine: centre and shape matrix lerp).  Quaternions must
-    be unit and ``q1`` already on the side of ``q0``.  Both quadrics are taken
-    in a common balanced frame that moves with A's centre (unit = the largest
-    semi-axis): the translation changes no answer, and A's U = 0 there makes
-    F cheaper (:func:`F_from_pencil`).  point/normal are zero when there is no
-    external touch at t > 0.
+    Returns (status at start, intervals (k, 2), point, normal, certified,
+    bracket_lo, bracket_hi); see :func:`solve_intervals`.  ``affine_a`` and
+    ``affine_b`` pick each body's motion model between its poses (rigid:
+    centre and quaternion lerp; affine: centre and shape matrix lerp; a
+    static body is either with equal poses).  Quaternions must be unit and
+    ``q1`` already on the side of ``q0``.  Both quadrics are taken in a
+    common balanced frame that moves with A's centre (unit = the largest
+    semi-axis): positions are subtracted before any product, so far-away
+    bodies lose nothing, and A's U = 0 there makes F cheaper
+    (:func:`F_from_pencil`).  point/normal are zero when there is no external
+    touch at t > 0.
     """
     length = max(ra.max(), rb.max())
     if same_orientation(qa0, qa1) and same_orientation(qb0, qb1):  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
         translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)
-    elif affine:
+    elif affine_a and affine_b:
         Pp, Up, sp = empty_pencil(1, 2, 3)
         zero = np.zeros(3)
         pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
@@ -756,12 +788,20 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
                          Pp, Up, sp, 1)
     else:
         Pp, Up, sp = empty_pencil(4, 5, 6)
-        rigid_scaled_into(ra, pa0, qa0, pa1, qa1, pa0, pa1, length, Pp, Up, sp, 0)
-        rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
+        zero = np.zeros(3)
+        if affine_a:
+            pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
+        else:
+            rigid_scaled_into(ra, pa0, qa0, pa1, qa1, pa0, pa1, length, Pp, Up, sp, 0)
+        if affine_b:
+            pencil_side_into(*quadric_affine(rb / length, (pb0 - pa0) / length, qb0, (pb1 - pa1) / length, qb1),
+                             Pp, Up, sp, 1)
+        else:
+            rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
     balance_side(Pp, Up, sp, 0)
     balance_side(Pp, Up, sp, 1)
     F = F_from_pencil(Pp, Up, sp)
-    status0, intervals, u = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
+    status0, intervals, u, certified, lo, hi = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
     point = np.zeros(3)
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
@@ -769,7 +809,13 @@ def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, fi
         p, normal = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
         for m in range(3):
             point[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
-    return status0, intervals, point, normal
+    return status0, intervals, point, normal, certified, lo, hi
+
+
+@_jit
+def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+    """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it."""
+    return two_pose_pair(affine, affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
 
 
 @_jit
@@ -782,7 +828,7 @@ def rigid_first_contact(radii, positions, quaternions, t_max, touch):
     arrays in, scalars out: what a batched caller would loop over; see
     :func:`exact_pair`.
     """
-    status0, intervals, point, normal = exact_pair(
+    status0, intervals, point, normal, certified, lo, _ = exact_pair(
         False, radii[0], positions[0, 0], quaternions[0, 0], positions[0, 1], quaternions[0, 1],
         radii[1], positions[1, 0], quaternions[1, 0], positions[1, 1], quaternions[1, 1], t_max, True)
     touch[0] = point
@@ -790,7 +836,7 @@ def rigid_first_contact(radii, positions, quaternions, t_max, touch):
     if status0 != 1:
         return status0, 0.0
     if intervals.shape[0] == 0:
-        return status0, -1.0
+        return status0, (-1.0 if certified else lo)  # an uncertain query is a possible contact at lo
     return status0, intervals[0, 0]
 
 
@@ -803,75 +849,170 @@ def _check_pair(a, motion_a, b, motion_b):
             raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
 
 
-def _two_pose_kind(motion_a, motion_b):
-    """True (affine) or False (rigid) when both motions interpolate two poses the same way, else None."""
-    for kind, affine in ((Rigid, False), (Affine, True)):
-        if type(motion_a) is kind and type(motion_b) is kind:
-            return affine
+def _two_pose_model(motion):
+    """(affine?, p0, q0, p1, q1) of a motion between two poses, or None for the others."""
+    if type(motion) is Static:
+        return False, motion.position, motion.quaternion, motion.position, motion.quaternion
+    if type(motion) in (Rigid, Affine):
+        return type(motion) is Affine, motion.position0, motion.quaternion0, motion.position1, motion.quaternion1
     return None
 
 
-class _Pair:
-    """The CCD function of one pair, built once and queried."""
+def time_pieces(factors, t_max):
+    """Edges of the pieces of [0, t_max] on which every positive factor varies by at most PIECE_RATIO.
 
-    def __init__(self, a, motion_a, b, motion_b):
-        _check_pair(a, motion_a, b, motion_b)
-        self.length = float(max(a.radii.max(), b.radii.max()))
-        self.F, self.Fabs, self.origin, self.pencil = prepare_pair(
-            *motion_a.quadric(a.radii), *motion_b.quadric(b.radii), self.length)
+    A rational motion's quadric carries g(t)^2 (a hinge sweeping close to
+    ±180°, a near-singular linear_affine).  Where g swings by orders of
+    magnitude, coefficients built over [0, 1] carry rounding from the large
+    end into the small one; built over a piece (the motion's own low-degree
+    polynomials restricted first), they keep the rounding of the piece.
+    Pieces halve, down to 2^-MAX_PIECE_DEPTH.
+    """
+    def even(t0, t1):
+        for g in factors:
+            c = bz.restrict(g.copy(), t0, t1)
+            lo = c.min()
+            if not lo > 0.0 or c.max() > PIECE_RATIO * lo:
+                return False
+        return True
 
-    def solve(self, t_max, first_only):
-        return solve_intervals(self.F, self.Fabs, NOISE, t_max, first_only)
+    edges = [0.0]
+    pending = [(0.0, 1.0, 0)]
+    while pending and edges[-1] < t_max:
+        t0, t1, depth = pending.pop()
+        if depth < MAX_PIECE_DEPTH and not even(t0, t1):
+            mid = 0.5 * (t0 + t1)
+            pending += [(mid, t1, depth + 1), (t0, mid, depth + 1)]
+        else:
+            edges.append(min(t1, t_max))
+    return edges
 
-    def touch(self, t, u):
-        A = pencil_quadric_at(*self.pencil, 0, t)
-        B = pencil_quadric_at(*self.pencil, 1, t)
-        point, normal = touching_point(A, B, u)
-        return self.origin + self.length * point, normal
+
+@dataclass(frozen=True)
+class PairSolution:
+    """Everything the solver knows about one pair over [0, t_max] (see :func:`solve_motions`)."""
+
+    status_at_start: int
+    intervals: np.ndarray      # (k, 2) maximal non-separate intervals, normalised time
+    point: object              # world touch point of the first contact (t > 0), or None
+    normal: object             # unit normal there, outward from the first body, or None
+    certified: bool            # False: a limit was hit; the first contact lies in ``bracket``
+    bracket: tuple             # (lo, hi) holding every possible first contact; (-1, -1) for none
+
+
+def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
+    """The general path: both motions in a local frame at A's start, built and solved piece by piece."""
+    origin = np.asarray(motion_a.anchor(), float)
+    local_a, local_b = motion_a.translated(origin), motion_b.translated(origin)
+    length = float(max(a.radii.max(), b.radii.max()))
+    factors = [f for f in (local_a.factor(), local_b.factor()) if f is not None]
+    edges = time_pieces(factors, t_max)
+    intervals = []
+    status0 = None
+    point = normal = None
+    certified, bracket = True, (-1.0, -1.0)
+    for t0, t1 in zip(edges[:-1], edges[1:]):
+        F, Fabs, frame_origin, pencil = prepare_pair(*local_a.quadric_on(a.radii, t0, t1),
+                                                     *local_b.quadric_on(b.radii, t0, t1), length)
+        code, piece, u, certified, lo, hi = solve_intervals(F, Fabs, NOISE, 1.0, first_only and not intervals)
+        if status0 is None:
+            status0 = int(code)
+        width = t1 - t0
+        for s_in, s_out in piece:
+            t_in, t_out = t0 + s_in * width, t0 + s_out * width
+            if intervals and t_in - intervals[-1][1] <= 1e-12:
+                intervals[-1][1] = t_out
+                continue
+            if not intervals and status0 == 1:
+                point, normal = touching_point(pencil_quadric_at(*pencil, 0, s_in),
+                                               pencil_quadric_at(*pencil, 1, s_in), u)
+                point = origin + frame_origin + length * point
+                bracket = (t_in, t_in)
+            intervals.append([t_in, t_out])
+        if not certified:
+            if not intervals:
+                bracket = (t0 + lo * width, t0 + hi * width)
+            break
+        if first_only and intervals:
+            break
+    if first_only and intervals:
+        intervals = intervals[:1]
+        intervals[0][1] = intervals[0][0]
+    return PairSolution(status0, np.array(intervals, float).reshape(-1, 2), point, normal, certified, bracket)
+
+
+def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
+    """The one path that answers a pair: a :class:`PairSolution` over [0, t_max].
+
+    Two bodies that each move between two poses (Static, Rigid, Affine) go to
+    the fused kernel :func:`two_pose_pair`; every other pair is built in a
+    local frame and over pieces of time (:func:`time_pieces`).
+    """
+    _check_pair(a, motion_a, b, motion_b)
+    pose_a, pose_b = _two_pose_model(motion_a), _two_pose_model(motion_b)
+    if pose_a is None or pose_b is None:
+        return _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
+    status0, intervals, point, normal, certified, lo, hi = two_pose_pair(
+        pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
+    touch = status0 == 1 and len(intervals) > 0
+    return PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
+                        bool(certified), (float(lo), float(hi)))
+
+
+@dataclass(frozen=True)
+class Contact:
+    """First contact of two moving ellipsoids.
+
+    ``time`` is normalised to [0, 1]; ``point`` (world) and ``normal`` (unit,
+    outward from the first ellipsoid) describe the touch; they are None when
+    the pair already touches or overlaps at the start (``time == 0``) or when
+    the answer is uncertain.  ``certainty`` is "certified", or "uncertain"
+    when a limit of the search was reached: then ``bracket`` = (lo, hi) holds
+    every possible first contact and ``time`` is lo, so an uncertain answer
+    never reads as "no contact".
+    """
+
+    time: float
+    point: object
+    normal: object
+    status_at_start: str
+    certainty: str = "certified"
+    bracket: tuple = None
+
+
+def _contact(solution):
+    """The first contact of a :class:`PairSolution` as a :class:`Contact`, or None when certified free."""
+    status = STATUS_NAMES[solution.status_at_start]
+    if solution.status_at_start != 1:
+        return Contact(0.0, None, None, status)
+    if len(solution.intervals):
+        time = float(solution.intervals[0, 0])
+        if solution.certified:
+            return Contact(time, solution.point, solution.normal, status)
+        return Contact(time, solution.point, solution.normal, status, "uncertain", (time, time))
+    if solution.certified:
+        return None
+    lo, hi = solution.bracket
+    return Contact(lo, None, None, status, "uncertain", (lo, hi))
 
 
 def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
     """First time in [0, t_max] at which two moving ellipsoids touch, as a :class:`Contact`.
 
-    Returns None when they stay separate over [0, t_max].  ``t_max`` is the
-    running bound when many pairs are solved for the earliest contact.
+    Returns None when they are certified separate over [0, t_max].  ``t_max``
+    is the running bound when many pairs are solved for the earliest contact.
     """
     t_max = _validate.time_bound(t_max, "t_max")
-    _check_pair(a, motion_a, b, motion_b)
-    affine = _two_pose_kind(motion_a, motion_b)
-    if affine is not None:  # the fused kernel, as batched callers use it
-        status0, intervals, point, normal = exact_pair(
-            affine, a.radii, motion_a.position0, motion_a.quaternion0, motion_a.position1, motion_a.quaternion1,
-            b.radii, motion_b.position0, motion_b.quaternion0, motion_b.position1, motion_b.quaternion1, t_max, True)
-    else:
-        pair = _Pair(a, motion_a, b, motion_b)
-        status0, intervals, u = pair.solve(t_max, True)
-        point = normal = None
-        if status0 == 1 and len(intervals):
-            point, normal = pair.touch(float(intervals[0, 0]), u)
-    if status0 != 1:
-        return Contact(0.0, None, None, STATUS_NAMES[int(status0)])
-    if len(intervals) == 0:
-        return None
-    return Contact(float(intervals[0, 0]), point, normal, "separate")
+    return _contact(solve_motions(a, motion_a, b, motion_b, t_max, True))
 
 
 def collision_intervals(a, motion_a, b, motion_b):
     """Maximal time intervals [t_in, t_out] within [0, 1] where the two are not separate."""
-    pair = _Pair(a, motion_a, b, motion_b)
-    _, intervals, _ = pair.solve(1.0, False)
-    return [(float(x), float(y)) for x, y in intervals]
+    return [(float(x), float(y)) for x, y in solve_motions(a, motion_a, b, motion_b).intervals]
 
 
 def solve_pair(a, motion_a, b, motion_b):
-    """Status at start, first contact (time, point, normal) and all intervals in one pass."""
-    pair = _Pair(a, motion_a, b, motion_b)
-    status0, intervals, u = pair.solve(1.0, False)
-    contact = None
-    if status0 == 1 and len(intervals):
-        t = float(intervals[0, 0])
-        point, normal = pair.touch(t, u)
-        contact = Contact(t, point, normal, "separate")
-    elif status0 != 1:
-        contact = Contact(0.0, None, None, STATUS_NAMES[int(status0)])
-    return STATUS_NAMES[int(status0)], contact, [(float(x), float(y)) for x, y in intervals]
+    """Status at start, first contact (a :class:`Contact` or None) and all intervals, in one pass."""
+    solution = solve_motions(a, motion_a, b, motion_b)
+    return (STATUS_NAMES[solution.status_at_start], _contact(solution),
+            [(float(x), float(y)) for x, y in solution.intervals])

@@ -111,6 +111,19 @@ def w_compose(Ga, ha, ga, Gb, hb, gb):
 
 
 @_jit
+def w_translated(G, h, g, offset):
+    """W of the same motion in the frame x' = x - offset:  W T(offset), i.e. h' = G offset + h."""
+    deg = max(G.shape[2], h.shape[1]) - 1
+    hn = np.empty((3, deg + 1))
+    for i in range(3):
+        acc = bz.elevate(h[i].copy(), deg + 1 - h.shape[1])
+        for k in range(3):
+            acc = acc + offset[k] * bz.elevate(G[i, k].copy(), deg + 1 - G.shape[2])
+        hn[i] = acc
+    return G, hn, g
+
+
+@_jit
 def quadric_from_w(G, h, g, radii):
     """(P, U, s) of an ellipsoid with radii under the motion whose scaled inverse is W."""
     d = 1.0 / (radii * radii)
@@ -290,6 +303,15 @@ def quadric_at(P, U, s, t):
 # ---------------------------------------------------------------- helpers
 
 
+def _restrict_all(c, t0, t1):
+    """Every Bernstein polynomial along the last axis of ``c`` reparametrised from [t0, t1] onto [0, 1]."""
+    flat = c.reshape(-1, c.shape[-1])
+    out = np.empty_like(flat)
+    for k in range(flat.shape[0]):
+        out[k] = bz.restrict(flat[k].copy(), t0, t1)
+    return out.reshape(c.shape)
+
+
 def _linear_bernstein(v0, v1):
     """Bernstein coefficients (..., 2) of the lerp from v0 to v1."""
     return np.ascontiguousarray(np.stack([np.asarray(v0, float), np.asarray(v1, float)], axis=-1))
@@ -349,6 +371,35 @@ class Motion(abc.ABC):
     def quadric(self, radii):
         """(P, U, s) Bernstein arrays of the ellipsoid with these radii under this motion."""
 
+    @abc.abstractmethod
+    def anchor(self):
+        """A point on the body's path at t = 0: the origin of a pair's local frame."""
+
+    @abc.abstractmethod
+    def translated(self, offset):
+        """The same motion seen from a frame whose origin is the world point ``offset``.
+
+        The offset is subtracted from the motion's own inputs, before any
+        product is formed, so that a body far from the world origin loses no
+        precision to the distance.
+        """
+
+    def factor(self):
+        """Bernstein coefficients of the positive factor that scales this motion's quadric, or None.
+
+        A rational motion's polynomial quadric is the true one times g(t)^2;
+        where g varies by orders of magnitude over [0, 1] the solver builds
+        the pair on shorter pieces of time (see :func:`mjccd.ccd.time_pieces`).
+        """
+        return None
+
+    def quadric_on(self, radii, t0, t1):
+        """(P, U, s) of this motion over [t0, t1], reparametrised onto [0, 1]."""
+        P, U, s = self.quadric(radii)
+        if t0 == 0.0 and t1 == 1.0:
+            return P, U, s
+        return (_restrict_all(P, t0, t1), _restrict_all(U, t0, t1), bz.restrict(s.copy(), t0, t1))
+
 
 class _WMotion(Motion):
     """A motion given by its scaled inverse W(t) = c(t) M(t)^-1."""
@@ -358,6 +409,25 @@ class _WMotion(Motion):
 
     def quadric(self, radii):
         return quadric_from_w(*self._w, np.asarray(radii, float))
+
+    def quadric_on(self, radii, t0, t1):
+        """The scaled inverse is restricted to [t0, t1] before the quadric's products are formed."""
+        if t0 == 0.0 and t1 == 1.0:
+            return self.quadric(radii)
+        G, h, g = self._w
+        return quadric_from_w(_restrict_all(G, t0, t1), _restrict_all(h, t0, t1), bz.restrict(g.copy(), t0, t1),
+                              np.asarray(radii, float))
+
+    def factor(self):
+        return self._w[2]
+
+    def anchor(self):
+        G, h, _ = self._w
+        return np.linalg.solve(G[:, :, 0], -h[:, 0])
+
+    def translated(self, offset):
+        G, h, g = self._w
+        return _WMotion(*w_translated(G, h, g, np.asarray(offset, float)))
 
     def transform(self, t):
         """World 3x4 matrix [L | v] of the frame at time t."""
@@ -379,6 +449,40 @@ class Static(_WMotion):
         self.quaternion = _validate.quaternion(quaternion, "quaternion")
         super().__init__(*_pose_w(self.position, self.quaternion))
 
+    def anchor(self):
+        return self.position
+
+    def translated(self, offset):
+        moved = _copy_with(self, position=self.position - offset)
+        moved._w = _pose_w(moved.position, moved.quaternion)
+        return moved
+
+
+def _copy_with(motion, **attributes):
+    """A shallow copy of an already validated motion with some attributes replaced (no re-validation)."""
+    moved = object.__new__(type(motion))
+    moved.__dict__.update(motion.__dict__)
+    moved.__dict__.update(attributes)
+    return moved
+
+
+class _TwoPoses:
+    """Local-frame helpers of the motions that interpolate two poses (centre lerp)."""
+
+    def anchor(self):
+        return self.position0
+
+    def translated(self, offset):
+        moved = _copy_with(self, position0=self.position0 - offset, position1=self.position1 - offset)
+        if hasattr(self, "_w"):
+            moved._w = w_translated(*self._w, offset)
+        return moved
+
+    def factor(self):
+        return None
+
+    quadric_on = Motion.quadric_on
+
 
 def _end_poses(position0, quaternion0, position1, quaternion1):
     """Validated start and end poses of a two-pose motion."""
@@ -386,7 +490,7 @@ def _end_poses(position0, quaternion0, position1, quaternion1):
             _validate.vector(position1, 3, "end.position"), _validate.quaternion(quaternion1, "end.quaternion"))
 
 
-class Rigid(_WMotion):
+class Rigid(_TwoPoses, _WMotion):
     """Centre lerp and quaternion lerp: ``R(t) = rot(q(t)) / |q(t)|^2``, rational of degree 2."""
 
     kind = "rigid"
@@ -404,7 +508,7 @@ class Rigid(_WMotion):
                              self.position1, self.quaternion1)
 
 
-class Affine(Motion):
+class Affine(_TwoPoses, Motion):
     """The thesis' affine interpolant: centre and shape matrix ``Q = R D R^T`` both lerped."""
 
     kind = "affine"
@@ -438,9 +542,18 @@ class LinearAffine(_WMotion):
                 adj[i, j] = minor if (i + j) % 2 == 0 else -minor
         det = sum(bz.multiply(Lc[0, k].copy(), adj[k, 0].copy()) for k in range(3))
         _nonvanishing(det, "start/end: the linear part L(t) becomes singular:", bernstein=True)
-        v = _linear_bernstein(self.start[:, 3], self.end[:, 3])
-        h = -_matvec_poly(adj, v)
-        super().__init__(adj, h, det)
+        super().__init__(adj, self._h(adj, np.zeros(3)), det)
+
+    def _h(self, adj, offset):
+        """-adj(L) (v - offset), the translation lerp v shifted before it is multiplied."""
+        return -_matvec_poly(adj, _linear_bernstein(self.start[:, 3] - offset, self.end[:, 3] - offset))
+
+    def anchor(self):
+        return self.start[:, 3]
+
+    def translated(self, offset):
+        adj, _, det = self._w
+        return _WMotion(adj, self._h(adj, offset), det)
 
 
 
@@ -482,11 +595,19 @@ class Rational(_WMotion):
         for i in range(3):
             for j in range(3):
                 G[i, j] = bz.multiply(Rn[j, i].copy(), vdb)
-        RnT = np.ascontiguousarray(np.transpose(Rn, (1, 0, 2)))
-        h = -_matvec_poly(RnT, Vn)
-        super().__init__(G, h, bz.multiply(rdb, vdb))
+        self._RnT = np.ascontiguousarray(np.transpose(Rn, (1, 0, 2)))
+        self._Vn, self._vdb = Vn, vdb
+        super().__init__(G, -_matvec_poly(self._RnT, Vn), bz.multiply(rdb, vdb))
         self.rotation, self.rotation_denominator = rot, rd
         self.translation, self.translation_denominator = tr, vd
+
+    def anchor(self):
+        return self._Vn[:, 0] / self._vdb[0]
+
+    def translated(self, offset):
+        """V - offset = (Vn - offset vd) / vd: the offset leaves the numerators before the rotation multiplies them."""
+        G, _, g = self._w
+        return _WMotion(G, -_matvec_poly(self._RnT, self._Vn - offset[:, None] * self._vdb[None, :]), g)
 
     @staticmethod
     def _check_rotation(rot, rd):

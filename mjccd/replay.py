@@ -412,7 +412,7 @@ def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
             length = float(max(bounds.radii[i].max(), bounds.radii[j].max()))
             F, Fabs, _, _ = prepare_pair(*qa, *qb, length)
             t1 = _time.perf_counter()
-            status0, intervals, _ = solve_intervals(F, Fabs, NOISE, 1.0, False)
+            status0, intervals, _, _, _, _ = solve_intervals(F, Fabs, NOISE, 1.0, False)
             t2 = _time.perf_counter()
             best_build, best_solve = min(best_build, t1 - t0), min(best_solve, t2 - t1)
         rows.append({"pair": [bounds.labels[i], bounds.labels[j]],

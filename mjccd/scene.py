@@ -31,9 +31,9 @@ _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
 
 # outcome codes of a pair in one frame
-SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED = range(7)
+SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED, UNCERTAIN = range(8)
 OUTCOME_NAMES = ("sphere", "cached_plane", "new_plane", "overlapping_t0", "exact_free",
-                 "exact_colliding", "pruned_by_bound")
+                 "exact_colliding", "pruned_by_bound", "uncertain")
 N_COUNTERS = 8  # pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned
 
 
@@ -324,14 +324,14 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
             counters[7] += 1
             continue
         t_max = 1.0 if all_pairs else min(best, 1.0)
-        status0, intervals, point, normal = exact_pair(affine, radii[i], p0[i], q0[i], p1[i], q1[i], radii[j],
-                                                       p0[j], q0[j], p1[j], q1[j], t_max, not all_pairs)
+        status0, intervals, point, normal, certified, lo, _ = exact_pair(
+            affine, radii[i], p0[i], q0[i], p1[i], q1[i], radii[j], p0[j], q0[j], p1[j], q1[j], t_max, not all_pairs)
         if outcome[k] != OVERLAP_T0:
             counters[5] += 1
-            if intervals.shape[0] > 0:
-                outcome[k] = EXACT_HIT
+            if intervals.shape[0] > 0 or not certified:  # an uncertain pair is a possible contact at lo
+                outcome[k] = EXACT_HIT if certified else UNCERTAIN
                 counters[6] += 1
-                t = intervals[0, 0] if status0 == 1 else 0.0
+                t = lo if intervals.shape[0] == 0 else (intervals[0, 0] if status0 == 1 else 0.0)
                 times[k] = t
                 points[k] = point
                 normals[k] = normal

@@ -142,8 +142,8 @@ def run(n_queries, repeats, n_static, seed, with_peers):
     sections.update()
 
     chain = six_hinge_chain()
-    from mjccd.ccd import _Pair
-    degree = _Pair(*chain).F.shape[1] - 1
+    from mjccd.ccd import prepare_pair
+    degree = prepare_pair(*chain[1].quadric(chain[0].radii), *chain[3].quadric(chain[2].radii), 1.0)[0].shape[1] - 1
     c = mjccd.first_contact(*chain)
     rows.append((f"six-hinge chain link vs static (F degree {degree})",
                  _per_query_median([chain], lambda a: mjccd.first_contact(*a), max(repeats, 20)),

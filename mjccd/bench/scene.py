@@ -202,7 +202,7 @@ def _unfiltered_first(radii, positions, quats, pairs, out_time, out_pair):
                 qa1 = -qa1
             if (quats[f, j] * qb1).sum() < 0.0:
                 qb1 = -qb1
-            s0, iv, _, _ = exact_pair(False, radii[i], positions[f, i], quats[f, i], positions[f + 1, i], qa1,
+            s0, iv, _, _, _, _, _ = exact_pair(False, radii[i], positions[f, i], quats[f, i], positions[f + 1, i], qa1,
                                       radii[j], positions[f, j], quats[f, j], positions[f + 1, j], qb1, 1.0, True)
             if iv.shape[0] > 0:
                 t = iv[0, 0] if s0 == 1 else 0.0

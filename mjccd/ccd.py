@@ -34,8 +34,8 @@ from mjccd import _validate
 from mjccd import bernstein as bz
 from mjccd.motion import (Affine, Motion, Rigid, Static, quadric_affine, quadric_at, rigid_scaled_into,
                           translation_scaled_into)
-from mjccd.quadric import (STATUS_NAMES, TOUCH_ULPS, Ellipsoid, det4, quartic_max, quartic_max5, status_from_max,
-                           touching_point)
+from mjccd.quadric import (STATUS_NAMES, TOUCH_ULPS, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix,
+                           status_from_max, touching_point)
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -511,78 +511,252 @@ def _march_exit(F, Fabs, noise, t_start, t_end):
     return -1.0, a
 
 
-@_jit
-def search_exit(F, Fabs, noise, t_start, t_end):
-    """First time in [t_start, t_end] at which the pair is separate again, or 2.0.
+# search_exit's boxes live in a pool of preallocated coefficient slots sized by this budget (bytes); the
+# slot of a popped box is recycled, so the search runs in bounded memory whatever the degree of F
+EXIT_POOL_BYTES = 32 * 1024 * 1024
 
-    Requires the pair to overlap at t_start.  The certified march
-    (:func:`_march_exit`) goes first; where it stalls, a box search takes
-    over: boxes of (u, t) are taken in order of their start time, so
-    everything before the popped box is certified negative.
+
+@_jit
+def _exit_capacity(rows, cols, max_pops):
+    """Box slots of search_exit's pool: EXIT_POOL_BYTES of coefficients, and no more than can be live.
+
+    Each pop adds at most one live box (a split replaces one box by two), so
+    after ``max_pops`` pops at most ``max_pops + 1`` are live.
     """
-    t_exit, reached = _march_exit(F, Fabs, noise, t_start, t_end)
-    if t_exit >= 0.0:
-        return t_exit, True
-    t_start = reached
-    Cr = bz.bivariate_restrict_t(F, t_start, t_end)
-    boxes = List()
-    boxes.append(Cr)
-    ends = List()
-    ends.append(t_end)
-    heap = [(t_start, 0)]
+    return max(2, min(EXIT_POOL_BYTES // (8 * rows * cols), max_pops + 2))
+
+
+@_jit
+def _exit_heap_push(ht, hq, hs, nh, t, seq, slot):
+    """Push (start time t, creation number seq, pool slot) on search_exit's heap of nh entries; returns nh + 1.
+
+    The order is (t, seq), as heapq orders the tuples (t, index of creation).
+    """
+    k = nh
+    while k > 0:
+        p = (k - 1) >> 1
+        if ht[p] < t or (ht[p] == t and hq[p] < seq):
+            break
+        ht[k] = ht[p]
+        hq[k] = hq[p]
+        hs[k] = hs[p]
+        k = p
+    ht[k] = t
+    hq[k] = seq
+    hs[k] = slot
+    return nh + 1
+
+
+@_jit
+def _exit_heap_pop(ht, hq, hs, nh):
+    """Drop the root of search_exit's heap of nh entries (read it first); returns nh - 1."""
+    nh -= 1
+    t = ht[nh]
+    seq = hq[nh]
+    slot = hs[nh]
+    k = 0
+    while True:
+        c = 2 * k + 1
+        if c >= nh:
+            break
+        if c + 1 < nh and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and hq[c + 1] < hq[c])):
+            c += 1
+        if not (ht[c] < t or (ht[c] == t and hq[c] < seq)):
+            break
+        ht[k] = ht[c]
+        hq[k] = hq[c]
+        hs[k] = hs[c]
+        k = c
+    ht[k] = t
+    hq[k] = seq
+    hs[k] = slot
+    return nh
+
+
+@_jit
+def _exit_box_negative(C):
+    """:func:`_certified_negative` without allocation (the row maxima as scalars)."""
+    cmax = C.max()
+    if cmax < 0.0:
+        return True
+    r0 = C[0].max()
+    r1 = C[1].max()
+    r2 = C[2].max()
+    r3 = C[3].max()
+    r4 = C[4].max()
+    gmax, _ = quartic_max5(r0, r1, r2, r3, r4)
+    return gmax < -CERTIFY_ULPS * max(cmax, -C.min())
+
+
+@_jit
+def _exit_split_t_into(work, low, high):
+    """De Casteljau at t = 1/2 on every row of ``work`` (destroyed): [t0, tm] into low, [tm, t1] into high."""
+    n = work.shape[1] - 1
+    for k in range(work.shape[0]):
+        w = work[k]
+        lo = low[k]
+        hi = high[k]
+        lo[0] = w[0]
+        hi[n] = w[n]
+        for r in range(1, n + 1):
+            for i in range(n - r + 1):
+                w[i] = 0.5 * w[i] + 0.5 * w[i + 1]
+            lo[r] = w[0]
+            hi[n - r] = w[n - r]
+
+
+@_jit
+def _exit_split_u_into(work, low, high):
+    """:func:`_split_u` of ``work`` (destroyed) into low and high: de Casteljau at u = 1/2 on all columns."""
+    m = work.shape[0] - 1
+    low[0] = work[0]
+    high[m] = work[m]
+    for r in range(1, m + 1):
+        for i in range(m - r + 1):
+            for j in range(work.shape[1]):
+                work[i, j] = 0.5 * (work[i, j] + work[i + 1, j])
+        low[r] = work[0]
+        high[m - r] = work[m - r]
+
+
+@_jit
+def _exit_box_search(F, Fabs, noise, t_start, t_end, capacity, max_pops):
+    """The box search of :func:`search_exit` from t_start in a pool of ``capacity`` boxes.
+
+    Returns (t, certified, peak number of live boxes); (t, certified) as
+    search_exit.  Boxes are slots of one preallocated (capacity, 5, n + 1)
+    array with their end times; the heap holds (start time, creation number,
+    slot) of the live ones, so it never holds more than ``capacity``
+    entries.  A discarded box's slot goes to a free list, a clipped box stays
+    in its slot, and a split box keeps its first half in its slot and puts the
+    second in a free one.  The search stops uncertified when the ``max_pops``-th
+    pop is not discarded or a split finds no free slot; the popped box has the
+    earliest start of all live boxes, so every time before it is certified.
+    """
+    rows, cols = F.shape
+    capacity = max(capacity, 1)
+    pool = np.empty((capacity, rows, cols))
+    ends = np.empty(capacity)
+    free = np.empty(capacity, np.int64)
+    ht = np.empty(capacity)
+    hq = np.empty(capacity, np.int64)
+    hs = np.empty(capacity, np.int64)
+    work = np.empty((rows, cols))
+    upper = np.empty(cols)
+    for i in range(rows):
+        pool[0, i] = F[i]
+        bz.restrict_into(pool[0, i], t_start, t_end)
+    ends[0] = t_end
+    top = 1  # slots below top have been used; those free since are in free[:nfree]
+    nfree = 0
+    seq = 0
+    nh = _exit_heap_push(ht, hq, hs, 0, t_start, seq, 0)
+    peak = 1
     count = 0
-    while len(heap) > 0:
-        t0, idx = heapq.heappop(heap)
-        C = boxes[idx]
-        t1 = ends[idx]
+    while nh > 0:
+        t0 = ht[0]
+        s = hs[0]
+        nh = _exit_heap_pop(ht, hq, hs, nh)
+        C = pool[s]
+        t1 = ends[s]
         count += 1
-        if _certified_negative(C):
+        if _exit_box_negative(C):
+            free[nfree] = s
+            nfree += 1
             continue
-        if count > MAX_BOXES:
-            return t0, False
+        if count > max_pops:
+            return t0, False, peak
         width = t1 - t0
         # Bézier clipping in t: F(u, t) <= sum_j max_i C[i, j] B_j(t), so when that
         # column-wise upper bound starts negative, F < 0 up to its first root.
-        upper = np.empty(C.shape[1])
-        for j in range(C.shape[1]):
-            upper[j] = C[:, j].max()
+        for j in range(cols):
+            c = C[0, j]
+            for i in range(1, rows):
+                c = max(c, C[i, j])
+            upper[j] = c
         r = 0.0
         if upper[0] < 0.0:
             r = bz.first_root(upper, 1e-12)
             if r < 0.0:  # the bound never reaches zero: F < 0 on the whole box
+                free[nfree] = s
+                nfree += 1
                 continue
-        if r > 0.05 and width > EXIT_BOX_TOL:
-            clipped = np.empty_like(C)
-            for i in range(C.shape[0]):
-                clipped[i] = bz.restrict(C[i].copy(), r, 1.0)
-            boxes.append(clipped)
-            ends.append(t1)
-            heapq.heappush(heap, (t0 + r * width, len(boxes) - 1))
+        if r > 0.05 and width > EXIT_BOX_TOL:  # the clipped box stays in its slot
+            for i in range(rows):
+                bz.restrict_into(C[i], r, 1.0)
+            seq += 1
+            nh = _exit_heap_push(ht, hq, hs, nh, t0 + r * width, seq, s)
             continue
         if width <= EXIT_BOX_TOL:
             code, gmax, _ = status_at(F, Fabs, noise, t1)
             if gmax >= 0.0:
-                return _bisect_sign(F, t0, t1, True), True
+                return _bisect_sign(F, t0, t1, True), True, peak
+            free[nfree] = s
+            nfree += 1
             continue
+        if nfree > 0:
+            nfree -= 1
+            b = free[nfree]
+        elif top < capacity:
+            b = top
+            top += 1
+        else:  # pool full
+            return t0, False, peak
         span_t = 0.0
         span_u = 0.0
-        for i in range(C.shape[0]):
+        for i in range(rows):
             span_t = max(span_t, C[i].max() - C[i].min())
-        for j in range(C.shape[1]):
-            span_u = max(span_u, C[:, j].max() - C[:, j].min())
+        for j in range(cols):
+            lo = hi = C[0, j]
+            for i in range(1, rows):
+                lo = min(lo, C[i, j])
+                hi = max(hi, C[i, j])
+            span_u = max(span_u, hi - lo)
+        work[:] = C
         if span_t >= span_u:  # halve the wider direction: t (first half ends at tm) or u
-            a, b = _split_t(C)
+            _exit_split_t_into(work, C, pool[b])
             a_end = b_start = 0.5 * (t0 + t1)
         else:
-            a, b = _split_u(C)
+            _exit_split_u_into(work, C, pool[b])
             a_end, b_start = t1, t0
-        boxes.append(a)
-        ends.append(a_end)
-        heapq.heappush(heap, (t0, len(boxes) - 1))
-        boxes.append(b)
-        ends.append(t1)
-        heapq.heappush(heap, (b_start, len(boxes) - 1))
-    return 2.0, True
+        ends[s] = a_end
+        ends[b] = t1
+        seq += 1
+        nh = _exit_heap_push(ht, hq, hs, nh, t0, seq, s)
+        seq += 1
+        nh = _exit_heap_push(ht, hq, hs, nh, b_start, seq, b)
+        peak = max(peak, nh)
+    return 2.0, True, peak
+
+
+@_jit
+def _search_exit_pool(F, Fabs, noise, t_start, t_end, capacity, max_pops):
+    """:func:`search_exit` with the pool's capacity and the pop limit as arguments: (t, certified, peak live boxes)."""
+    t_exit, reached = _march_exit(F, Fabs, noise, t_start, t_end)
+    if t_exit >= 0.0:
+        return t_exit, True, 0
+    return _exit_box_search(F, Fabs, noise, reached, t_end, capacity, max_pops)
+
+
+@_jit
+def search_exit(F, Fabs, noise, t_start, t_end):
+    """End of the overlap that holds at t_start, within [t_start, t_end]: (t, certified).
+
+    Requires the pair to overlap at t_start.  The certified march
+    (:func:`_march_exit`) goes first; where it stalls, a box search takes
+    over: boxes of (u, t) are taken in order of their start time, so
+    everything before the popped box is certified negative.  The boxes live
+    in a recycled pool of at most EXIT_POOL_BYTES (:func:`_exit_box_search`).
+
+    certified True: t is the first time at which the pair is separate again,
+    or 2.0 when it overlaps through t_end.  certified False: a limit (the pool
+    full, or MAX_BOXES pops) stopped the search; the pair is certified
+    overlapping on [t_start, t) and the exit, if any, lies in [t, t_end].
+    """
+    rows, cols = F.shape
+    t, certified, _ = _search_exit_pool(F, Fabs, noise, t_start, t_end,
+                                        _exit_capacity(rows, cols, MAX_BOXES), MAX_BOXES)
+    return t, certified
 
 
 @_jit
@@ -760,6 +934,36 @@ def same_orientation(q0, q1):
 
 
 @_jit
+def _conj_mul(a, b):
+    """The quaternion conj(a) b: b's orientation in the frame of a (a unit)."""
+    return np.array([a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3],
+                     a[0] * b[1] - a[1] * b[0] - a[2] * b[3] + a[3] * b[2],
+                     a[0] * b[2] + a[1] * b[3] - a[2] * b[0] - a[3] * b[1],
+                     a[0] * b[3] - a[1] * b[2] + a[2] * b[1] - a[3] * b[0]])
+
+
+@_jit
+def _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating):
+    """Both two-pose motions in the frame of A at t = 0: origin A's start, axes A's axes.
+
+    A's start orientation becomes exactly the identity (and stays so when
+    nothing turns), so A's quadric is diagonal: a thin body's small
+    curvatures are not lost to the rounding of its large ones.  Rotating
+    and translating both bodies changes no answer.
+    """
+    R = quat_to_matrix(qa0)
+    ident = np.array([1.0, 0.0, 0.0, 0.0])
+    out = []
+    for p in (pa0, pa1, pb0, pb1):
+        d = p - pa0
+        out.append(np.array([R[0, 0] * d[0] + R[1, 0] * d[1] + R[2, 0] * d[2],
+                             R[0, 1] * d[0] + R[1, 1] * d[1] + R[2, 1] * d[2],
+                             R[0, 2] * d[0] + R[1, 2] * d[1] + R[2, 2] * d[2]]))
+    qa1n = ident if translating else _conj_mul(qa0, qa1)
+    return ident, qa1n, out[0], out[1], _conj_mul(qa0, qb0), _conj_mul(qa0, qb1), out[2], out[3]
+
+
+@_jit
 def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """Exact CCD of two ellipsoids that each move between two poses.
 
@@ -776,7 +980,11 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     touch at t > 0.
     """
     length = max(ra.max(), rb.max())
-    if same_orientation(qa0, qa1) and same_orientation(qb0, qb1):  # both only translate (orientation q0): F of degree 2
+    translating = same_orientation(qa0, qa1) and same_orientation(qb0, qb1)
+    frame = quat_to_matrix(qa0)
+    origin = pa0
+    qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1 = _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating)
+    if translating:  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
         translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)
@@ -806,9 +1014,13 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
         t = intervals[0, 0]
-        p, normal = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
+        p, n = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
+        local = np.empty(3)
         for m in range(3):
-            point[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
+            local[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
+        for m in range(3):
+            point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
+            normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
     return status0, intervals, point, normal, certified, lo, hi
 
 

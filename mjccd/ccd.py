@@ -23,12 +23,10 @@ edges u = 0 and u = 1, and at each time t the pair is separate exactly when
 ``first_contact`` and ``collision_intervals`` are the public entry points;
 everything below them runs in numba on plain arrays.
 """
-import heapq
 from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numba.typed import List
 
 from mjccd import _validate
 from mjccd import bernstein as bz

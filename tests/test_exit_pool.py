@@ -1,0 +1,174 @@
+"""search_exit's bounded box pool: the same exits as the unbounded search, and honest limits."""
+import heapq
+
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd import bernstein as bz
+from mjccd import ccd
+from mjccd.ccd import NOISE
+
+ID = [1.0, 0.0, 0.0, 0.0]
+
+
+def _pair(a, motion_a, b, motion_b):
+    length = float(max(a.radii.max(), b.radii.max()))
+    F, Fabs, _, _ = ccd.prepare_pair(*motion_a.quadric(a.radii), *motion_b.quadric(b.radii), length)
+    return F, Fabs
+
+
+def _ring(depth, lift=None):
+    """A sphere on a link behind six hinges about z (F of degree 96) circling a sphere at the origin.
+
+    The link keeps the two centres 0.8 - depth apart (radii 0.3 + 0.5): a constant penetration
+    ``depth`` that the certified march cannot get through, so the box search runs.  With ``lift``
+    the second sphere rises along z by that much over the step and the overlap ends.
+    """
+    a, b = mjccd.Ellipsoid([0.3] * 3), mjccd.Ellipsoid([0.5] * 3)
+    chain = mjccd.Chain([mjccd.Hinge([0, 0, 1], -0.4, 0.4) for _ in range(6)] + [mjccd.Fixed([0.8 - depth, 0, 0])])
+    mb = mjccd.Static([0, 0, 0]) if lift is None else mjccd.Rigid([0, 0, 0], ID, [0, 0, lift], ID)
+    return _pair(a, chain, b, mb)
+
+
+CASES = {
+    "spheres": lambda: _pair(mjccd.Ellipsoid([0.5] * 3), mjccd.Rigid([-1.5, 0, 0], ID, [1.5, 0.1, 0], ID),
+                             mjccd.Ellipsoid([0.4] * 3), mjccd.Static([0, 0, 0])),
+    "spinning": lambda: _pair(mjccd.Ellipsoid([2, 0.2, 0.2]), mjccd.Chain([mjccd.Hinge([0, 0, 1], -2.0, 2.0)]),
+                              mjccd.Ellipsoid([0.3] * 3), mjccd.Static([1.5, 0, 0])),
+    "tumbling": lambda: _pair(mjccd.Ellipsoid([0.6, 0.2, 0.3]),
+                              mjccd.Rigid([-0.5, 0, 0], ID, [0.6, 0.2, 0.1], [0.5, 0.5, 0.5, 0.5]),
+                              mjccd.Ellipsoid([0.4, 0.3, 0.2]), mjccd.Rigid([0, 0, 0], ID, [0, 0.1, 0], [0, 1, 0, 0])),
+    "ring_through": lambda: _ring(1e-9),
+    "ring_lift": lambda: _ring(1e-9, lift=8e-5),
+    "ring_lift_fast": lambda: _ring(1e-9, lift=2e-4),
+}
+
+
+def _first_overlap(F, Fabs):
+    for t in np.linspace(0.0, 1.0, 2001):
+        if ccd.status_at(F, Fabs, NOISE, t)[0] == -1:
+            return float(t)
+    raise AssertionError("the case never overlaps")
+
+
+def _reference_exit(F, Fabs, noise, t_start, t_end):
+    """The search before the pool, in Python: every box kept, a heapq of (start, index of creation)."""
+    t_exit, reached = ccd._march_exit(F, Fabs, noise, t_start, t_end)
+    if t_exit >= 0.0:
+        return t_exit, True
+    boxes = [bz.bivariate_restrict_t(F, reached, t_end)]
+    ends = [t_end]
+    heap = [(reached, 0)]
+    count = 0
+    while heap:
+        t0, idx = heapq.heappop(heap)
+        C, t1 = boxes[idx], ends[idx]
+        count += 1
+        if ccd._certified_negative(C):
+            continue
+        if count > ccd.MAX_BOXES:
+            return t0, False
+        width = t1 - t0
+        upper = C.max(axis=0)
+        r = 0.0
+        if upper[0] < 0.0:
+            r = bz.first_root(upper, 1e-12)
+            if r < 0.0:
+                continue
+        if r > 0.05 and width > ccd.EXIT_BOX_TOL:
+            boxes.append(np.array([bz.restrict(C[i].copy(), r, 1.0) for i in range(C.shape[0])]))
+            ends.append(t1)
+            heapq.heappush(heap, (t0 + r * width, len(boxes) - 1))
+            continue
+        if width <= ccd.EXIT_BOX_TOL:
+            _, gmax, _ = ccd.status_at(F, Fabs, noise, t1)
+            if gmax >= 0.0:
+                return ccd._bisect_sign(F, t0, t1, True), True
+            continue
+        span_t = (C.max(axis=1) - C.min(axis=1)).max()
+        span_u = (C.max(axis=0) - C.min(axis=0)).max()
+        if span_t >= span_u:
+            a, b = ccd._split_t(C)
+            a_end = b_start = 0.5 * (t0 + t1)
+        else:
+            a, b = ccd._split_u(C)
+            a_end, b_start = t1, t0
+        boxes += [a, b]
+        ends += [a_end, t1]
+        heapq.heappush(heap, (t0, len(boxes) - 2))
+        heapq.heappush(heap, (b_start, len(boxes) - 1))
+    return 2.0, True
+
+
+def _assert_overlapping_before(F, Fabs, t_start, t):
+    for s in np.linspace(t_start, t, 101)[:-1]:
+        assert ccd.state(F, s)[0] < 0.0
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_pool_gives_the_exits_of_the_unbounded_search(name):
+    F, Fabs = CASES[name]()
+    t0 = _first_overlap(F, Fabs)
+    want = _reference_exit(F, Fabs, NOISE, t0, 1.0)
+    got = ccd.search_exit(F, Fabs, NOISE, t0, 1.0)
+    assert want[1] and got == want  # bit for bit: same boxes, same order
+    # a pool far larger than the default changes nothing either
+    t, certified, peak = ccd._search_exit_pool(F, Fabs, NOISE, t0, 1.0, 10 ** 6, ccd.MAX_BOXES)
+    assert (t, certified) == got
+    assert peak <= ccd._exit_capacity(F.shape[0], F.shape[1], ccd.MAX_BOXES)
+
+
+def test_expected_exits():
+    """The constructed exits where they can be written down: the lifted sphere leaves when
+    0.8^2 = (0.8 - depth)^2 + (lift t)^2, and the ring without lift never leaves."""
+    F, Fabs = CASES["ring_lift"]()
+    t, certified = ccd.search_exit(F, Fabs, NOISE, 0.0, 1.0)
+    r = 0.8 - 1e-9
+    assert certified and t == pytest.approx(np.sqrt(0.64 - r * r) / 8e-5, abs=1e-5)
+    F, Fabs = CASES["ring_through"]()
+    assert ccd.search_exit(F, Fabs, NOISE, 0.0, 1.0) == (2.0, True)
+
+
+def test_default_capacity_fits_the_budget():
+    for n in (2, 6, 18, 48, 96, 200):
+        cap = ccd._exit_capacity(5, n + 1, ccd.MAX_BOXES)
+        assert 2 <= cap <= ccd.MAX_BOXES + 2
+        assert cap * 5 * (n + 1) * 8 <= ccd.EXIT_POOL_BYTES
+    assert ccd._exit_capacity(5, 97, ccd.MAX_BOXES) > 1000
+    assert ccd._exit_capacity(5, 3, 100) == 102  # never more slots than can be live
+
+
+@pytest.mark.parametrize("name", ["spheres", "ring_lift", "ring_lift_fast"])
+@pytest.mark.parametrize("capacity, max_pops", [(1, 10 ** 9), (2, 10 ** 9), (8, 10 ** 9), (10 ** 5, 1),
+                                                (10 ** 5, 10), (10 ** 5, 300), (10 ** 5, 3000)])
+def test_a_limit_returns_a_certified_lower_bound(name, capacity, max_pops):
+    F, Fabs = CASES[name]()
+    t0 = _first_overlap(F, Fabs)
+    exit_time, certified = ccd.search_exit(F, Fabs, NOISE, t0, 1.0)
+    assert certified and exit_time < 1.0
+    t, certified, peak = ccd._search_exit_pool(F, Fabs, NOISE, t0, 1.0, capacity, max_pops)
+    assert peak <= max(capacity, 1)
+    if certified:  # the limit was not reached: then the answer is the exit itself
+        assert t == exit_time
+        return
+    assert t0 <= t <= exit_time
+    _assert_overlapping_before(F, Fabs, t0, t)
+
+
+def test_limits_stop_the_ring_that_never_leaves():
+    F, Fabs = CASES["ring_through"]()
+    for capacity, max_pops in [(4, 10 ** 9), (10 ** 5, 50), (10 ** 5, 2000)]:
+        t, certified, peak = ccd._search_exit_pool(F, Fabs, NOISE, 0.0, 1.0, capacity, max_pops)
+        assert not certified and 0.0 < t < 1.0 and peak <= capacity
+        _assert_overlapping_before(F, Fabs, 0.0, t)
+
+
+def test_max_boxes_is_reported_uncertified():
+    """A penetration of 5e-12 for the whole step: the public search runs into MAX_BOXES.  It used to
+    return the popped box's start as if it were the exit; now that start comes back uncertified."""
+    F, Fabs = _ring(5e-12)
+    assert ccd.status_at(F, Fabs, NOISE, 0.0)[0] == -1
+    t, certified = ccd.search_exit(F, Fabs, NOISE, 0.0, 1.0)
+    assert not certified and 0.0 < t < 1.0
+    _assert_overlapping_before(F, Fabs, 0.0, t)

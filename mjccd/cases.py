@@ -98,10 +98,14 @@ def solve_case(case):
     point = None
     if contact is not None and contact.point is not None:
         point = [float(x) for x in contact.point]
-    return {"status_at_start": status,
-            "first_contact": None if contact is None else float(contact.time),
-            "intervals": [[t0, t1] for t0, t1 in intervals],
-            "contact_point": point}
+    result = {"status_at_start": status,
+              "first_contact": None if contact is None else float(contact.time),
+              "intervals": [[t0, t1] for t0, t1 in intervals],
+              "contact_point": point,
+              "certainty": "certified" if contact is None else contact.certainty}
+    if result["certainty"] == "uncertain":
+        result["first_contact_bracket"] = [float(x) for x in contact.bracket]
+    return result
 
 
 def solve_cases(doc):

@@ -23,12 +23,13 @@ edges u = 0 and u = 1, and at each time t the pair is separate exactly when
 ``first_contact`` and ``collision_intervals`` are the public entry points;
 everything below them runs in numba on plain arrays.
 """
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from fractions import Fraction
 
 import numba
 import numpy as np
 
-from mjccd import _validate
+from mjccd import _validate, exact
 from mjccd import bernstein as bz
 from mjccd.motion import (Affine, Motion, Rigid, Static, quadric_affine, quadric_at, rigid_scaled_into,
                           translation_scaled_into)
@@ -47,6 +48,7 @@ MAX_INTERVALS = 100000
 TOUCH_SPAN = 1e-6        # time resolution of a tangential contact (the square root of the rounding band)
 PIECE_RATIO = 4.0        # a piece of time on which every motion's positive factor varies at most this much
 MAX_PIECE_DEPTH = 10
+EXACT_PROBES = 64        # probes end * 2^-k (k = 64 .. 1) that look for the first contact of a pair touching at t = 0
 # relative rounding noise of F's coefficients (construction and evaluation)
 NOISE = 256 * 2.220446049250313e-16
 # Two unit quaternions that differ by at most this in every component are one orientation.  MuJoCo's
@@ -1151,6 +1153,51 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     return PairSolution(status0, np.array(intervals, float).reshape(-1, 2), point, normal, certified, bracket)
 
 
+def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
+    """A pair the double status calls touching at t = 0 (inside its rounding band), settled in rational arithmetic.
+
+    Touching or overlapping: the double answer stands.  Separate (e.g. a gap
+    of 1e-12 that closes at once): the first contact is where the exact
+    status first leaves "separate" inside the double's first interval,
+    bracketed by probes 2^-k and bisected on dyadic times.
+    """
+    origin = motion_a.anchor()
+    local_a, local_b = motion_a.translated(origin), motion_b.translated(origin)
+
+    def exact_status(t):
+        return exact.static_status_exact(local_a.exact_quadric_at(a.radii, t), local_b.exact_quadric_at(b.radii, t))
+
+    code = exact_status(Fraction(0))
+    if code != 1:
+        return replace(solution, status_at_start=code)
+    end = Fraction(float(solution.intervals[0, 1])) if len(solution.intervals) else Fraction(0)
+    end = max(end, Fraction(TOUCH_SPAN))
+    lo, hi = Fraction(0), None
+    for k in range(EXACT_PROBES, 0, -1):
+        probe = end / 2 ** k
+        if exact_status(probe) != 1:
+            hi = probe
+            break
+        lo = probe
+    if hi is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
+        return replace(solution, status_at_start=1, intervals=solution.intervals[1:], certified=False,
+                       bracket=(0.0, float(end)), point=None, normal=None)
+    while hi - lo > Fraction(2) ** -60 * max(hi, Fraction(2) ** -1000):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if exact_status(mid) == 1 else (lo, mid)
+    t = float(hi)
+    intervals = solution.intervals.copy()
+    intervals[0, 0] = t
+    if first_only:
+        intervals[0, 1] = t
+    F, _, frame_origin, pencil = prepare_pair(*local_a.quadric(a.radii), *local_b.quadric(b.radii),
+                                              float(max(a.radii.max(), b.radii.max())))
+    point, normal = touching_point(pencil_quadric_at(*pencil, 0, t), pencil_quadric_at(*pencil, 1, t), state(F, t)[1])
+    length = float(max(a.radii.max(), b.radii.max()))
+    return replace(solution, status_at_start=1, intervals=intervals, point=origin + frame_origin + length * point,
+                   normal=normal, bracket=(t, t))
+
+
 def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     """The one path that answers a pair: a :class:`PairSolution` over [0, t_max].
 
@@ -1161,12 +1208,16 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     _check_pair(a, motion_a, b, motion_b)
     pose_a, pose_b = _two_pose_model(motion_a), _two_pose_model(motion_b)
     if pose_a is None or pose_b is None:
-        return _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
-    status0, intervals, point, normal, certified, lo, hi = two_pose_pair(
-        pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
-    touch = status0 == 1 and len(intervals) > 0
-    return PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
-                        bool(certified), (float(lo), float(hi)))
+        solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
+    else:
+        status0, intervals, point, normal, certified, lo, hi = two_pose_pair(
+            pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
+        touch = status0 == 1 and len(intervals) > 0
+        solution = PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
+                                bool(certified), (float(lo), float(hi)))
+    if solution.status_at_start == 0:
+        solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
+    return solution
 
 
 @dataclass(frozen=True)

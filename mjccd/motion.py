@@ -15,11 +15,12 @@ Degrees in t of (P, U, s): static (0, 0, 0); rigid (4, 5, 6); affine
 (4k, 4k, 4k) at most.
 """
 import abc
+from fractions import Fraction
 
 import numba
 import numpy as np
 
-from mjccd import _validate
+from mjccd import _validate, exact
 from mjccd import bernstein as bz
 from mjccd.quadric import quat_to_matrix
 
@@ -303,6 +304,15 @@ def quadric_at(P, U, s, t):
 # ---------------------------------------------------------------- helpers
 
 
+def _exact_bernstein(c, t):
+    """Value of the Bernstein polynomial ``c`` (doubles) at the rational t, exactly (de Casteljau)."""
+    work = [Fraction(float(x)) for x in c]
+    for r in range(1, len(work)):
+        for i in range(len(work) - r):
+            work[i] = (1 - t) * work[i] + t * work[i + 1]
+    return work[0]
+
+
 def _restrict_all(c, t0, t1):
     """Every Bernstein polynomial along the last axis of ``c`` reparametrised from [t0, t1] onto [0, 1]."""
     flat = c.reshape(-1, c.shape[-1])
@@ -393,6 +403,10 @@ class Motion(abc.ABC):
         """
         return None
 
+    @abc.abstractmethod
+    def exact_quadric_at(self, radii, t):
+        """The 4x4 quadric at the rational time t (Fractions), exact for this motion's doubles (up to a factor > 0)."""
+
     def quadric_on(self, radii, t0, t1):
         """(P, U, s) of this motion over [t0, t1], reparametrised onto [0, 1]."""
         P, U, s = self.quadric(radii)
@@ -420,6 +434,12 @@ class _WMotion(Motion):
 
     def factor(self):
         return self._w[2]
+
+    def exact_quadric_at(self, radii, t):
+        G, h, g = self._w
+        return exact.quadric_from_w_exact([[_exact_bernstein(G[i, j], t) for j in range(3)] for i in range(3)],
+                                          [_exact_bernstein(h[i], t) for i in range(3)],
+                                          _exact_bernstein(g, t), radii)
 
     def anchor(self):
         G, h, _ = self._w
@@ -452,6 +472,9 @@ class Static(_WMotion):
     def anchor(self):
         return self.position
 
+    def exact_quadric_at(self, radii, t):
+        return exact.quadric_exact(radii, self.position, self.quaternion)
+
     def translated(self, offset):
         moved = _copy_with(self, position=self.position - offset)
         moved._w = _pose_w(moved.position, moved.quaternion)
@@ -483,6 +506,12 @@ class _TwoPoses:
 
     quadric_on = Motion.quadric_on
 
+    def _exact_pose_at(self, t):
+        """Centre and (unnormalised) quaternion lerps at the rational time t, exactly."""
+        lerp = [(1 - t) * Fraction(float(x)) + t * Fraction(float(y)) for x, y in zip(self.position0, self.position1)]
+        return lerp, [(1 - t) * Fraction(float(x)) + t * Fraction(float(y))
+                      for x, y in zip(self.quaternion0, self.quaternion1)]
+
 
 def _end_poses(position0, quaternion0, position1, quaternion1):
     """Validated start and end poses of a two-pose motion."""
@@ -507,6 +536,9 @@ class Rigid(_TwoPoses, _WMotion):
         return quadric_rigid(np.asarray(radii, float), self.position0, self.quaternion0,
                              self.position1, self.quaternion1)
 
+    def exact_quadric_at(self, radii, t):
+        return exact.quadric_exact(radii, *self._exact_pose_at(t))
+
 
 class Affine(_TwoPoses, Motion):
     """The thesis' affine interpolant: centre and shape matrix ``Q = R D R^T`` both lerped."""
@@ -520,6 +552,17 @@ class Affine(_TwoPoses, Motion):
     def quadric(self, radii):
         return quadric_affine(np.asarray(radii, float), self.position0, self.quaternion0,
                               self.position1, self.quaternion1)
+
+    def exact_quadric_at(self, radii, t):
+        """Shape matrices and centres lerped, exactly: [[Q, -Q c], [-c^T Q, c^T Q c - 1]]."""
+        zero = (0.0, 0.0, 0.0)
+        Q0 = exact.quadric_exact(radii, zero, self.quaternion0)
+        Q1 = exact.quadric_exact(radii, zero, self.quaternion1)
+        c, _ = self._exact_pose_at(t)
+        Q = [[(1 - t) * Q0[i][j] + t * Q1[i][j] for j in range(3)] for i in range(3)]
+        Qc = [sum(Q[i][k] * c[k] for k in range(3)) for i in range(3)]
+        out = [row + [-Qc[i]] for i, row in enumerate(Q)]
+        return out + [[-x for x in Qc] + [sum(c[i] * Qc[i] for i in range(3)) - 1]]
 
 
 

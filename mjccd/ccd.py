@@ -46,7 +46,7 @@ MAX_MARCH = 2000
 CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact quartic maximum
 MAX_INTERVALS = 100000
 TOUCH_SPAN = 1e-6        # time resolution of a tangential contact (the square root of the rounding band)
-PIECE_RATIO = 4.0        # a piece of time on which every motion's positive factor varies at most this much
+PIECE_RATIO = 16.0        # a piece of time on which every motion's positive factor varies at most this much
 MAX_PIECE_DEPTH = 10
 EXACT_PROBES = 64        # probes end * 2^-k (k = 64 .. 1) that look for the first contact of a pair touching at t = 0
 # relative rounding noise of F's coefficients (construction and evaluation)
@@ -1083,6 +1083,8 @@ def time_pieces(factors, t_max):
     def even(t0, t1):
         for g in factors:
             c = bz.restrict(g.copy(), t0, t1)
+            if c[0] < 0.0:  # W and -W are the same motion: the factor has one sign on [0, 1]
+                c = -c
             lo = c.min()
             if not lo > 0.0 or c.max() > PIECE_RATIO * lo:
                 return False

@@ -31,10 +31,9 @@ import numpy as np
 
 from mjccd import _validate, exact
 from mjccd import bernstein as bz
-from mjccd.motion import (Affine, Motion, Rigid, Static, quadric_affine, quadric_at, rigid_scaled_into,
-                          translation_scaled_into)
-from mjccd.quadric import (STATUS_NAMES, TOUCH_ULPS, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix,
-                           status_from_max, touching_point)
+from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, pose_side_errors, quadric_affine, quadric_at,
+                          rigid_scaled_into, translation_scaled_into)
+from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -46,16 +45,16 @@ MAX_MARCH = 2000
 CERTIFY_ULPS = 64 * 2.220446049250313e-16  # rounding allowance of the exact quartic maximum
 MAX_INTERVALS = 100000
 TOUCH_SPAN = 1e-6        # time resolution of a tangential contact (the square root of the rounding band)
-PIECE_RATIO = 16.0        # a piece of time on which every motion's positive factor varies at most this much
+PIECE_RATIO = 2.0         # a piece of time on which every motion's positive factor varies at most this much
 MAX_PIECE_DEPTH = 10
 EXACT_PROBES = 64        # probes end * 2^-k (k = 64 .. 1) that look for the first contact of a pair touching at t = 0
-# relative rounding noise of F's coefficients (construction and evaluation)
-NOISE = 256 * 2.220446049250313e-16
 # Two unit quaternions that differ by at most this in every component are one orientation.  MuJoCo's
 # integration of a free body that does not turn moves its quaternion by about 2 units in the last place
 # of 1 per step (e.g. a ball in flight); the turn such a difference stands for (below 4e-15 rad) moves no
-# surface point by more than 4e-15 of its distance from the centre, far inside NOISE.
+# surface point by more than 4e-15 of its distance from the centre, far below the rounding of the inputs.
 SAME_ORIENTATION = 8 * 2.220446049250313e-16
+EVAL_ROUNDING = 64 * EPS  # relative rounding of evaluating F's rows at a time and of a quartic's maximum
+TIME_TOL = 1e-9           # an event is certified when its proven bracket is at most this wide
 
 
 # ---------------------------------------------------------------- building F
@@ -95,8 +94,8 @@ def _dot3_into(out, x0, x1, x2, y0, y1, y2, sign):
 
 
 @_jit
-def _minor_into(out, x, y, e, g):
-    """out += x y - e g for four pencil entries (rows: the A and B sides), in scaled form."""
+def _minor_into(out, x, y, e, g, sign):
+    """out += x y + sign e g for four pencil entries (rows: the A and B sides), in scaled form."""
     for j1 in range(x.shape[1]):
         x0 = x[0, j1]
         x1 = x[1, j1]
@@ -107,9 +106,9 @@ def _minor_into(out, x, y, e, g):
             y1 = y[1, j2]
             g0 = g[0, j2]
             g1 = g[1, j2]
-            out[0, j1 + j2] += x0 * y0 - e0 * g0
-            out[1, j1 + j2] += x0 * y1 + x1 * y0 - e0 * g1 - e1 * g0
-            out[2, j1 + j2] += x1 * y1 - e1 * g1
+            out[0, j1 + j2] += x0 * y0 + sign * (e0 * g0)
+            out[1, j1 + j2] += x0 * y1 + x1 * y0 + sign * (e0 * g1 + e1 * g0)
+            out[2, j1 + j2] += x1 * y1 + sign * (e1 * g1)
 
 
 @_jit
@@ -175,6 +174,7 @@ def balance_side(Pp, Up, sp, side):
             Up[i, side, a] *= inv
     for a in range(sp.shape[1]):
         sp[side, a] *= inv
+    return inv
 
 
 @_jit
@@ -196,6 +196,30 @@ _ADJUGATE_TERMS = ((0, 0, 1, 1, 2, 2, 1, 2, 1, 2), (1, 1, 0, 0, 2, 2, 0, 2, 0, 2
 
 @_jit
 def F_from_pencil(Pp, Up, sp):
+    """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from the scaled pencil."""
+    return _pencil_determinant(Pp, Up, sp, -1.0)
+
+
+@_jit
+def F_abs_from_pencil(Pp, Up, sp):
+    """The same computation on |entries| with every difference turned into a sum.
+
+    Its coefficients bound the terms that :func:`F_from_pencil` adds up, so
+    gamma_K times them bounds that computation's rounding, K the longest
+    chain of rounded operations (:func:`error_bound`).
+    """
+    return _pencil_determinant(np.abs(Pp), np.abs(Up), np.abs(sp), 1.0)
+
+
+@_jit
+def degree_in_t(Pp, Up, sp):
+    """Degree in t of the F that :func:`F_from_pencil` builds from this pencil."""
+    p, q, r = Pp.shape[3] - 1, Up.shape[2] - 1, sp.shape[1] - 1
+    return max(3 * p + r, 2 * p + 2 * q)
+
+
+@_jit
+def _pencil_determinant(Pp, Up, sp, sign):
     """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from the scaled pencil.
 
     Uses ``det [[P, U], [U^T, s]] = s det P - U^T adj(P) U``, which keeps
@@ -203,14 +227,15 @@ def F_from_pencil(Pp, Up, sp):
     is a plain convolution, and products that are summed share one pass.
     When side 0 has U = 0 (body A centred at the frame origin at every t, see
     :func:`exact_pair`), U = u U_B and the second term is u^2 U_B^T adj(P) U_B:
-    rows 2..4 of F, at a third of the cost.
+    rows 2..4 of F, at a third of the cost.  ``sign`` is -1 for F itself and
+    +1 for :func:`F_abs_from_pencil`.
     """
     p = Pp.shape[3] - 1
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
     C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p)
     for i, j, a, b, c, d, e, f, g, h in _ADJUGATE_TERMS:
-        _minor_into(C[i, j], Pp[a, b], Pp[c, d], Pp[e, f], Pp[g, h])
+        _minor_into(C[i, j], Pp[a, b], Pp[c, d], Pp[e, f], Pp[g, h], sign)
     for i in range(3):
         for j in range(i):
             C[i, j] = C[j, i]
@@ -233,7 +258,7 @@ def F_from_pencil(Pp, Up, sp):
     V = np.zeros((3, u_rows + 2, 2 * p + q + 1))  # V_i = sum_j adj(P)_ij U_j
     for i in range(3):
         _dot3_into(V[i], U[0], U[1], U[2], C[i, 0], C[i, 1], C[i, 2], 1.0)
-    _dot3_into(F2[4 - 2 * u_rows:], U[0], U[1], U[2], V[0], V[1], V[2], -1.0)
+    _dot3_into(F2[4 - 2 * u_rows:], U[0], U[1], U[2], V[0], V[1], V[2], sign)
     F = bz.from_scaled_into(F)
     if n1 == n2:
         return F
@@ -243,6 +268,126 @@ def F_from_pencil(Pp, Up, sp):
     else:
         F2 = bz.bivariate_elevate_t(F2, n - n2)
     return F + F2
+
+
+# ---------------------------------------------------------------- rounding bounds
+#
+# Every decision of the solver is taken on F with E, a bound of the errors of
+# F's Bernstein coefficients, so that it holds for the exact F of the inputs.
+# E has two parts: the pencil entries' own construction errors (bounded by the
+# builder of each quadric, as a symmetric 4x4 matrix of bounds per side, in
+# units of plain Bernstein coefficients) carried through the determinant, and
+# the rounding of F_from_pencil itself: a straight-line program of sums and
+# products whose error is at most gamma_K times the same program run on
+# absolute values (F_abs_from_pencil), K its longest chain of roundings.
+
+
+@_jit
+def gamma(k):
+    """gamma_k = k u / (1 - k u): the relative error bound of k rounded operations."""
+    return k * EPS / (1.0 - k * EPS)
+
+
+_PERMUTATIONS = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 1, 3), (0, 2, 3, 1), (0, 3, 1, 2), (0, 3, 2, 1),
+                 (1, 0, 2, 3), (1, 0, 3, 2), (1, 2, 0, 3), (1, 2, 3, 0), (1, 3, 0, 2), (1, 3, 2, 0),
+                 (2, 0, 1, 3), (2, 0, 3, 1), (2, 1, 0, 3), (2, 1, 3, 0), (2, 3, 0, 1), (2, 3, 1, 0),
+                 (3, 0, 1, 2), (3, 0, 2, 1), (3, 1, 0, 2), (3, 1, 2, 0), (3, 2, 0, 1), (3, 2, 1, 0))
+
+
+@_jit
+def _entry_maxima(Pp, Up, sp):
+    """Largest |plain Bernstein coefficient| of each entry of the 4x4 pencil, over both sides."""
+    p = Pp.shape[3] - 1
+    q = Up.shape[2] - 1
+    r = sp.shape[1] - 1
+    bp, bq, br = bz.binomial_row(p), bz.binomial_row(q), bz.binomial_row(r)
+    M = np.zeros((4, 4))
+    for side in range(2):
+        for i in range(3):
+            for j in range(3):
+                for a in range(p + 1):
+                    M[i, j] = max(M[i, j], abs(Pp[i, j, side, a]) / bp[a])
+            for a in range(q + 1):
+                M[i, 3] = max(M[i, 3], abs(Up[i, side, a]) / bq[a])
+            M[3, i] = M[i, 3]
+        for a in range(r + 1):
+            M[3, 3] = max(M[3, 3], abs(sp[side, a]) / br[a])
+    return M
+
+
+@_jit
+def _chain_length(Pp, Up, sp):
+    """K: an upper bound of the number of roundings along any path of F_from_pencil (and of its elevation)."""
+    p = Pp.shape[3] - 1
+    q = Up.shape[2] - 1
+    r = sp.shape[1] - 1
+    return 8.0 * (2 * p + 2 * q + r + 10)
+
+
+@_jit
+def entry_errors_balanced(err, inv, M):
+    """The entries' error bounds after :func:`balance_side` multiplied side s by inv[s] (one more rounding)."""
+    out = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = max(err[0, i, j] * inv[0], err[1, i, j] * inv[1]) * (1.0 + 2.0 * EPS) + EPS * M[i, j]
+    return out
+
+
+@_jit
+def error_bound_global(F, Pp, Up, sp, D):
+    """E as one constant: a bound of every coefficient's error from maxima alone (cheap).
+
+    With M the entries' coefficient maxima and D their error bounds, every
+    coefficient of F_abs is at most perm(M) and the entries' errors move F by
+    at most perm(M + D) - perm(M) (each term of the permanent is a product of
+    four entries, and Bernstein products are convex combinations).
+    """
+    M = _entry_maxima(Pp, Up, sp)
+    perm = 0.0
+    delta = 0.0
+    for pi in _PERMUTATIONS:
+        term = 1.0
+        for i in range(4):
+            term *= M[i, pi[i]] + D[i, pi[i]]
+        perm += term
+        for k in range(4):  # prod(M + D) - prod(M) <= sum_k D_k prod_{j != k} (M + D)_j
+            part = D[k, pi[k]]
+            for i in range(4):
+                if i != k:
+                    part *= M[i, pi[i]] + D[i, pi[i]]
+            delta += part
+    K = _chain_length(Pp, Up, sp)
+    n = F.shape[1] - 1
+    value = (delta + gamma(K) * perm) * (1.0 + 64.0 * EPS) + gamma(4 * n + 40) * np.abs(F).max()
+    return np.full(F.shape, value)
+
+
+@_jit
+def error_bound_tight(F, Pp, Up, sp, D):
+    """E coefficient by coefficient: F_abs of the entries widened by their error bounds, minus F_abs."""
+    p = Pp.shape[3] - 1
+    q = Up.shape[2] - 1
+    r = sp.shape[1] - 1
+    bp, bq, br = bz.binomial_row(p), bz.binomial_row(q), bz.binomial_row(r)
+    Pw = np.abs(Pp)
+    Uw = np.abs(Up)
+    sw = np.abs(sp)
+    for side in range(2):
+        for i in range(3):
+            for j in range(3):
+                for a in range(p + 1):
+                    Pw[i, j, side, a] += D[i, j] * bp[a]
+            for a in range(q + 1):
+                Uw[i, side, a] += D[i, 3] * bq[a]
+        for a in range(r + 1):
+            sw[side, a] += D[3, 3] * br[a]
+    wide = _pencil_determinant(Pw, Uw, sw, 1.0)
+    plain = F_abs_from_pencil(Pp, Up, sp)
+    K = _chain_length(Pp, Up, sp)
+    n = F.shape[1] - 1
+    extra = gamma(4 * n + 40) * np.abs(F).max()
+    return (wide - plain) * (1.0 + 4.0 * EPS) + 3.0 * gamma(K) * wide + extra
 
 
 # ---------------------------------------------------------------- state
@@ -279,71 +424,119 @@ def state(F, t):
 
 
 @_jit
-def status_at(F, Fabs, noise, t):
-    """(status code, max_u F, argmax) at time t.
-
-    The touching band is the rounding noise of F at (argmax, t): ``noise``
-    (relative, from construction and evaluation) times the same Bernstein
-    sum taken over |F| (``Fabs`` holds |F| coefficient-wise).
-    """
-    gmax, u = state(F, t)
-    if abs(gmax) > TOUCH_ULPS * noise * Fabs.max():  # beyond any rounding noise of F
-        return (1 if gmax > 0.0 else -1), gmax, u
+def _quartic_at(g0, g1, g2, g3, g4, u):
     v = 1.0 - u
-    a0, a1, a2, a3, a4 = _rows_at(Fabs, t)
-    scale = v * v * v * v * a0 + 4.0 * u * v * v * v * a1 + 6.0 * u * u * v * v * a2 + 4.0 * u * u * u * v * a3 + u * u * u * u * a4
-    return status_from_max(gmax, noise * scale), gmax, u
+    return v * v * v * v * g0 + 4.0 * u * v * v * v * g1 + 6.0 * u * u * v * v * g2 + 4.0 * u * u * u * v * g3 + u * u * u * u * g4
+
+
+@_jit
+def status_at(F, E, t):
+    """(status code, max_u F, argmax) at time t, decided with E, the bound of F's coefficient errors.
+
+    1 (separate) when F - E > 0 at the argmax, so the true State is positive;
+    -1 (overlapping) when F + E < 0 for every u; 0 when neither holds: the
+    pair touches, or is closer to touching than the rounding can resolve.
+    E already holds the rounding of these evaluations (:func:`error_bound`).
+    """
+    g0, g1, g2, g3, g4 = _rows_at(F, t)
+    gmax, u = quartic_max5(g0, g1, g2, g3, g4)
+    emax = E.max()
+    if gmax > emax:
+        return 1, gmax, u
+    if gmax < -emax:
+        return -1, gmax, u
+    e0, e1, e2, e3, e4 = _rows_at(E, t)
+    if gmax > _quartic_at(e0, e1, e2, e3, e4, u):
+        return 1, gmax, u
+    upper, _ = quartic_max5(g0 + e0, g1 + e1, g2 + e2, g3 + e3, g4 + e4)
+    if upper < 0.0:
+        return -1, gmax, u
+    return 0, gmax, u
 
 
 # ---------------------------------------------------------------- first contact
 
 
 @_jit
-def _polish_contact(F, t, u, t_max):
-    """One Newton step of State(t) = 0 from just before the contact (State ~ F(u*, t))."""
-    h = bz.bivariate_at_u(F, u)
-    value = bz.evaluate(h, t)
-    slope = bz.evaluate(bz.derivative(h), t)
-    if slope < 0.0 and value > 0.0:
-        dt = -value / slope
-        if dt < 1e-7:
-            return min(t + dt, t_max)
-    return t
-
-
-@_jit
-def shoot_first_contact(F, Fabs, noise, t_start, t_max):
+def shoot_first_contact(F, E, t_start, t_max):
     """Earliest contact in [t_start, t_max] by recursive Bézier shoots.
 
-    Requires the pair to be separate at t_start.  Returns (time, u, certified):
-    the contact (State ~ 0 there), or time -1 when separation is certified
-    over the whole interval.  When the shoots run out (MAX_SHOOTS) the pair
-    is certified separate only up to the returned time, ``certified`` is
-    False, and the first contact, if any, lies in [time, t_max].
+    Requires the pair to be separate at t_start.  Returns (time, u, lower,
+    certified): where the shoots stopped (State inside the rounding band),
+    the argmax there, and ``lower``, up to which separation is proven: each shoot
+    follows F(u*, .) - E(u*, .), a lower bound of the true F(u*, .), so the
+    true first contact is at or after ``lower``.  Time -1 when separation is
+    proven over the whole interval.  When the shoots run out (MAX_SHOOTS),
+    ``certified`` is False and the first contact, if any, lies in [lower, t_max].
     """
     t = t_start
-    _, _, u = status_at(F, Fabs, noise, t)
+    _, _, u = status_at(F, E, t)
     h = np.empty(F.shape[1])
+    e = np.empty(F.shape[1])
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
             break
         bz.bivariate_at_u_into(F, u, h)
+        bz.bivariate_at_u_into(E, u, e)
+        h -= e
         bz.restrict_into(h, t, t_max)
+        if not h[0] > 0.0:  # F - E has come down to zero: the bound can prove no more, the contact is near
+            return t, u, t, True
         r = -1.0 if h.min() > 0.0 else bz.first_root(h, SHOOT_TOL)
         if r < 0.0:
             break
         t_new = t + r * (t_max - t)
-        code, _, u_new = status_at(F, Fabs, noise, t_new)
+        code, _, u_new = status_at(F, E, t_new)
         if code != 1 or t_new <= t:
-            return _polish_contact(F, t_new, u_new, t_max), u_new, True
+            return t_new, u_new, t_new, True
         t, u = t_new, u_new
     else:
-        return t, u, False
+        return t, u, t, False
     # certified separate up to t_max; a touch exactly at t_max still counts
-    code, _, u_end = status_at(F, Fabs, noise, t_max)
+    code, _, u_end = status_at(F, E, t_max)
     if code != 1:
-        return t_max, u_end, True
-    return -1.0, 0.0, True
+        return t_max, u_end, t_max, True
+    return -1.0, 0.0, t_max, True
+
+
+@_jit
+def _entry_upper(F, E, t_c, lower, t_max):
+    """The upper end of the bracket of a contact estimated at t_c (proven separate before ``lower``).
+
+    The first probe t_c + w 2^k (w = t_c - lower) that is proven overlapping:
+    the contact lies in [lower, probe]; or the first proven separate again
+    after probes inside the rounding band: the pair stayed inside the band in
+    between (a touch, or a miss by less than the rounding), and [lower, probe]
+    is where a contact may be.  The shoots stop where State is at the band's
+    edge, so the first probes may still be separate.
+    t_max when no probe is decided (touching to the end).
+    """
+    w = max(t_c - lower, 1e-16)
+    t = t_c
+    lowest = np.inf
+    emax = E.max()
+    while t < t_max:
+        t = min(t_c + w, t_max)
+        code, gmax, _ = status_at(F, E, t)
+        if code == -1:
+            return t
+        lowest = min(lowest, gmax)
+        # separate again: State has risen by more than its rounding since its lowest probe (a graze), or the
+        # probes never went inside the band (the bracket stays wide)
+        if code == 1 and (gmax > lowest + 2.0 * emax or w > TOUCH_SPAN):
+            return t
+        w *= 2.0
+    return t_max
+
+
+@_jit
+def _entry_estimate(F, E, t_c, lower, t_max):
+    """(estimate, upper end of the bracket) of a contact where the shoots stopped at t_c: the estimate is
+    the zero of the computed State inside [lower, upper] when it changes sign there, else t_c."""
+    upper = _entry_upper(F, E, t_c, lower, t_max)
+    if upper > t_c and state(F, t_c)[0] > 0.0 and state(F, upper)[0] < 0.0:
+        return _bisect_sign(F, t_c, upper, False), upper
+    return t_c, upper
 
 
 # ---------------------------------------------------------------- end of an overlap
@@ -446,8 +639,9 @@ def _curvature_bound(F, t0, t1):
 
 
 @_jit
-def _march_exit(F, Fabs, noise, t_start, t_end):
-    """Certified march through an overlap: returns (exit time or 2.0 for none, or -1.0; time reached).
+def _march_exit(F, t_start, t_end):
+    """Certified march through an overlap of F (an upper bound of the true F): returns (exit time or 2.0
+    for none, or -1.0; time reached).
 
     From a time a with State(a) < 0 it steps by the largest h (found by
     doubling and halving) for which
@@ -484,8 +678,8 @@ def _march_exit(F, Fabs, noise, t_start, t_end):
         for i in range(rows):
             g[i] = bz.evaluate_row(F, i, a)
             d[i] = bz.evaluate_row(Ft, i, a)
-            margin = max(margin, bz.evaluate_row(Fabs, i, a))
-        margin *= noise
+            margin = max(margin, abs(g[i]) + abs(d[i]))
+        margin *= EVAL_ROUNDING  # rounding of the rows and of the quartic's maximum
         h = min(2.0 * h, w1 - a)
         while h >= EXIT_BOX_TOL:
             for i in range(rows):
@@ -620,7 +814,7 @@ def _exit_split_u_into(work, low, high):
 
 
 @_jit
-def _exit_box_search(F, Fabs, noise, t_start, t_end, capacity, max_pops):
+def _exit_box_search(F, t_start, t_end, capacity, max_pops):
     """The box search of :func:`search_exit` from t_start in a pool of ``capacity`` boxes.
 
     Returns (t, certified, peak number of live boxes); (t, certified) as
@@ -688,7 +882,7 @@ def _exit_box_search(F, Fabs, noise, t_start, t_end, capacity, max_pops):
             nh = _exit_heap_push(ht, hq, hs, nh, t0 + r * width, seq, s)
             continue
         if width <= EXIT_BOX_TOL:
-            code, gmax, _ = status_at(F, Fabs, noise, t1)
+            gmax, _ = state(F, t1)
             if gmax >= 0.0:
                 return _bisect_sign(F, t0, t1, True), True, peak
             free[nfree] = s
@@ -730,16 +924,21 @@ def _exit_box_search(F, Fabs, noise, t_start, t_end, capacity, max_pops):
 
 
 @_jit
-def _search_exit_pool(F, Fabs, noise, t_start, t_end, capacity, max_pops):
-    """:func:`search_exit` with the pool's capacity and the pop limit as arguments: (t, certified, peak live boxes)."""
-    t_exit, reached = _march_exit(F, Fabs, noise, t_start, t_end)
+def _search_exit_pool(F, E, t_start, t_end, capacity, max_pops):
+    """:func:`search_exit` with the pool's capacity and the pop limit as arguments: (t, certified, peak live boxes).
+
+    Both searches run on F + E, an upper bound of the true F: the time they
+    return is a lower bound of the true exit.
+    """
+    upper = F + E
+    t_exit, reached = _march_exit(upper, t_start, t_end)
     if t_exit >= 0.0:
         return t_exit, True, 0
-    return _exit_box_search(F, Fabs, noise, reached, t_end, capacity, max_pops)
+    return _exit_box_search(upper, reached, t_end, capacity, max_pops)
 
 
 @_jit
-def search_exit(F, Fabs, noise, t_start, t_end):
+def search_exit(F, E, t_start, t_end):
     """End of the overlap that holds at t_start, within [t_start, t_end]: (t, certified).
 
     Requires the pair to overlap at t_start.  The certified march
@@ -748,19 +947,20 @@ def search_exit(F, Fabs, noise, t_start, t_end):
     everything before the popped box is certified negative.  The boxes live
     in a recycled pool of at most EXIT_POOL_BYTES (:func:`_exit_box_search`).
 
-    certified True: t is the first time at which the pair is separate again,
-    or 2.0 when it overlaps through t_end.  certified False: a limit (the pool
+    The search runs on F + E, so every discarded box is overlapping for the
+    true F, and the returned time is a lower bound of the true exit.
+    certified True: t is that time, or 2.0 when the pair overlaps through t_end.  certified False: a limit (the pool
     full, or MAX_BOXES pops) stopped the search; the pair is certified
     overlapping on [t_start, t) and the exit, if any, lies in [t, t_end].
     """
     rows, cols = F.shape
-    t, certified, _ = _search_exit_pool(F, Fabs, noise, t_start, t_end,
+    t, certified, _ = _search_exit_pool(F, E, t_start, t_end,
                                         _exit_capacity(rows, cols, MAX_BOXES), MAX_BOXES)
     return t, certified
 
 
 @_jit
-def _step_off(F, Fabs, noise, t, t_end):
+def _step_off(F, E, t, t_end):
     """Status just after a contact instant t: the first decided probe t + 1e-13 * 2^k.
 
     Returns (probe, status code, last undecided probe).  A pair whose State
@@ -773,7 +973,7 @@ def _step_off(F, Fabs, noise, t, t_end):
     last = t
     while True:
         tp = min(t + eps, t_end)
-        code, _, _ = status_at(F, Fabs, noise, tp)
+        code, _, _ = status_at(F, E, tp)
         if code != 0 or tp >= t_end:
             return tp, code, last
         last = tp
@@ -781,13 +981,13 @@ def _step_off(F, Fabs, noise, t, t_end):
 
 
 @_jit
-def _end_of_touch(F, Fabs, noise, lo, hi):
+def _end_of_touch(F, E, lo, hi):
     """Last touching time between ``lo`` (touching) and ``hi`` (separate): bisection on the decided status."""
     for _ in range(60):
         if hi - lo <= 4.0 * 2.220446049250313e-16 * max(1.0, hi):
             break
         mid = 0.5 * (lo + hi)
-        code, _, _ = status_at(F, Fabs, noise, mid)
+        code, _, _ = status_at(F, E, mid)
         if code == 1:
             hi = mid
         else:
@@ -796,81 +996,114 @@ def _end_of_touch(F, Fabs, noise, lo, hi):
 
 
 @_jit
-def _leave_contact(F, Fabs, noise, t_in, t_max):
-    """From a contact instant t_in: (t_out, t_sep, certified).
+def _leave_contact(F, E, t_in, t_max):
+    """From a contact instant t_in: (t_out, out_lo, out_hi, t_sep, limited).
 
-    t_out ends the non-separate stretch (overlaps that follow each other
-    without a separate probe between them are one stretch); t_sep is a
+    t_out is the estimate of the end of the non-separate stretch (overlaps
+    that follow each other without a separate probe between them are one
+    stretch) and [out_lo, out_hi] a proven bracket of it; t_sep is a
     separate time right after it, where the next shoot starts (t_max when
-    the stretch reaches it).  ``certified`` is False when the overlap search
-    hit its limit: then t_out is only a lower bound of the exit.
+    the stretch reaches it).  ``limited``: the overlap search hit its limit,
+    and out_lo is only the time up to which the overlap is proven.
     """
     t_out = t_in
+    lower = t_in
     while True:
-        probe, code, last = _step_off(F, Fabs, noise, t_out, t_max)
+        probe, code, last = _step_off(F, E, t_out, t_max)
         if code == 1:
             if last - t_out > TOUCH_SPAN:  # touching for longer than a graze: up to somewhere in (last, probe)
-                t_out = _end_of_touch(F, Fabs, noise, last, probe)
-            elif t_out == t_in and state(F, t_in)[0] < 0.0:  # an overlap too short for the probes
-                t_out = _bisect_sign(F, t_in, probe, True)
-            return t_out, probe, True
+                t_out = _end_of_touch(F, E, last, probe)
+            elif state(F, t_out)[0] < 0.0:  # the zero of the computed State before the separate probe
+                t_out = _bisect_sign(F, t_out, probe, True)
+            return t_out, lower, probe, probe, False
         if code == 0:
-            return t_max, t_max, True
-        t_exit, certified = search_exit(F, Fabs, noise, probe, t_max)
-        t_out = min(t_exit, t_max)
-        if not certified or t_out >= t_max:
-            return t_out, t_max, certified
+            return t_max, t_max, t_max, t_max, False
+        t_exit, certified = search_exit(F, E, probe, t_max)
+        if not certified:
+            return t_exit, t_exit, t_max, t_max, True
+        if t_exit >= t_max:
+            return t_max, t_max, t_max, t_max, False
+        t_out = lower = t_exit
 
 
 @_jit
-def solve_intervals(F, Fabs, noise, t_max, first_only):
+def solve_intervals(F, E, t_max, first_only):
     """All maximal non-separation intervals in [0, t_max] (just the first with ``first_only``).
 
-    Returns (status_at_start, intervals (k, 2), u at the first contact,
-    certified, bracket_lo, bracket_hi).  ``certified`` is False when a limit
-    of the search (shoots, boxes, intervals) was reached: then every possible
-    first contact lies in [bracket_lo, bracket_hi], and the intervals found so
-    far are exact.  When certified, the bracket is the first contact itself
-    (or [-1, -1] when there is none).
+    ``E`` bounds the errors of F's coefficients (:func:`error_bound`), so
+    every decision is proven for the true F.  Returns (status_at_start,
+    intervals (k, 2), bounds (k, 4), u at the first contact, reached):
+    intervals hold the estimates (zeros of the computed State), bounds the
+    proven brackets [in_lo, in_hi, out_lo, out_hi] of each start and end.
+    ``reached`` is -1, or, when a limit of the search (shoots, boxes,
+    intervals) stopped it, the time up to which the answer is complete.
     """
     out = np.empty((64, 2))
+    bounds = np.empty((64, 4))
     k = 0
-    certified = True
-    status0, _, u_first = status_at(F, Fabs, noise, 0.0)
+    status0, _, u_first = status_at(F, E, 0.0)
     if status0 == 1:
-        t_in, u_first, certified = shoot_first_contact(F, Fabs, noise, 0.0, t_max)
+        t_in, u_first, lower, certified = shoot_first_contact(F, E, 0.0, t_max)
         if not certified:
-            return status0, out[:0], u_first, False, t_in, t_max
+            return status0, out[:0], bounds[:0], u_first, lower
         if t_in < 0.0:
-            return status0, out[:0], u_first, True, -1.0, -1.0
-    else:
-        t_in = 0.0
-    first = t_in
+            return status0, out[:0], bounds[:0], u_first, -1.0
+        t_in, in_hi = _entry_estimate(F, E, t_in, lower, t_max)
+    else:  # not provably separate at the start: a contact at 0, or (code 0) inside the rounding band
+        t_in = lower = 0.0
+        in_hi = 0.0 if status0 == -1 else _entry_upper(F, E, 0.0, 0.0, t_max)
     for _ in range(MAX_INTERVALS):
         if first_only:
-            out[0, 0] = t_in
-            out[0, 1] = t_in
-            k = 1
-            break
-        t_out, t_sep, certified = _leave_contact(F, Fabs, noise, t_in, t_max)
+            out[0, 0] = out[0, 1] = t_in
+            bounds[0, 0] = bounds[0, 2] = lower
+            bounds[0, 1] = bounds[0, 3] = in_hi
+            return status0, out[:1], bounds[:1], u_first, -1.0
+        t_out, out_lo, out_hi, t_sep, limited = _leave_contact(F, E, t_in, t_max)
         if k > 0 and t_in - out[k - 1, 1] <= 1e-12:  # touching the previous one: merge
             out[k - 1, 1] = t_out
+            bounds[k - 1, 2] = out_lo
+            bounds[k - 1, 3] = out_hi
         else:
             if k == out.shape[0]:
                 bigger = np.empty((2 * k, 2))
                 bigger[:k] = out
                 out = bigger
+                wider = np.empty((2 * k, 4))
+                wider[:k] = bounds
+                bounds = wider
             out[k, 0] = t_in
             out[k, 1] = t_out
+            bounds[k, 0] = lower
+            bounds[k, 1] = in_hi
+            bounds[k, 2] = out_lo
+            bounds[k, 3] = out_hi
             k += 1
-        if not certified or t_sep >= t_max:
-            break
-        t_in, _, certified = shoot_first_contact(F, Fabs, noise, t_sep, t_max)
-        if not certified or t_in < 0.0:
-            break
-    else:
-        certified = False
-    return status0, out[:k], u_first, certified, first, first
+        if limited:
+            return status0, out[:k], bounds[:k], u_first, out_lo
+        if t_sep >= t_max:
+            return status0, out[:k], bounds[:k], u_first, -1.0
+        t_in, _, lower, certified = shoot_first_contact(F, E, t_sep, t_max)
+        if not certified:
+            return status0, out[:k], bounds[:k], u_first, lower
+        if t_in < 0.0:
+            return status0, out[:k], bounds[:k], u_first, -1.0
+        t_in, in_hi = _entry_estimate(F, E, t_in, lower, t_max)
+    return status0, out[:k], bounds[:k], u_first, t_in
+
+
+@_jit
+def verdict(intervals, bounds, reached, t_max):
+    """(certified, lo, hi) of a solve: certified when no limit was hit and every proven bracket is at most
+    TIME_TOL wide; [lo, hi] then holds every possible first contact ([-1, -1]: none)."""
+    certified = reached < 0.0
+    for k in range(bounds.shape[0]):
+        if bounds[k, 1] - bounds[k, 0] > TIME_TOL or bounds[k, 3] - bounds[k, 2] > TIME_TOL:
+            certified = False
+    if intervals.shape[0] > 0:
+        return certified, bounds[0, 0], bounds[0, 1]
+    if reached >= 0.0:
+        return False, reached, t_max
+    return certified, -1.0, -1.0
 
 
 # ---------------------------------------------------------------- Python layer
@@ -911,8 +1144,49 @@ def _reframe(P, U, s, origin, length):
 
 
 @_jit
-def prepare_pair(PA, UA, sA, PB, UB, sB, length):
-    """F with |F|, the common frame's origin, and the balanced pencil of both bodies."""
+def _reframed_errors(P, U, s, err, origin, length):
+    """Error bounds (4x4) of :func:`_reframe`'s output, elevated and scaled into a pencil, from those of its input.
+
+    P' = P L^2, U' = L (U + P o), s' = s + o . (U' / L + U): each error is
+    carried through with the magnitudes of the computed coefficients (the
+    true ones are at most those plus their bounds), and every step adds its
+    own rounding.
+    """
+    n = max(P.shape[2], U.shape[1], s.shape[0]) + 2
+    g = gamma(4 * n + 20)
+    Pm = np.zeros((3, 3))
+    Um = np.zeros(3)
+    for i in range(3):
+        for j in range(3):
+            Pm[i, j] = np.abs(P[i, j]).max()
+        Um[i] = np.abs(U[i]).max()
+    sm = np.abs(s).max()
+    o = np.abs(origin)
+    out = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = err[i, j] * length * length * (1.0 + g) + g * (Pm[i, j] + err[i, j]) * length * length
+    es = err[3, 3] + g * sm
+    for i in range(3):
+        eu = err[i, 3]
+        mu = Um[i]
+        for j in range(3):
+            eu += o[j] * err[i, j]
+            mu += o[j] * (Pm[i, j] + err[i, j])
+        out[i, 3] = out[3, i] = length * (eu + g * (mu + err[i, 3]))
+        es += o[i] * (2.0 * eu + g * 2.0 * (mu + err[i, 3]))
+    out[3, 3] = es * (1.0 + g)
+    return out
+
+
+@_jit
+def prepare_pair(PA, UA, sA, errA, PB, UB, sB, errB, length):
+    """The pencil of both bodies in a common frame, with the bounds of its entries' errors.
+
+    Returns (pencil (Pp, Up, sp), err (2, 4, 4), the frame's origin); the
+    frame is centred between the bodies and scaled by ``length``.  Feed it to
+    :func:`solve_balanced`, which balances the pencil in place.
+    """
     origin = 0.25 * (_centre(PA, UA, sA, 0.0) + _centre(PA, UA, sA, 1.0)
                      + _centre(PB, UB, sB, 0.0) + _centre(PB, UB, sB, 1.0))
     p = max(PA.shape[2], PB.shape[2]) - 1
@@ -920,10 +1194,10 @@ def prepare_pair(PA, UA, sA, PB, UB, sB, length):
     Pp, Up, sp = empty_pencil(p, q, max(q, sA.shape[0] - 1, sB.shape[0] - 1))
     pencil_side_into(*_reframe(PA, UA, sA, origin, length), Pp, Up, sp, 0)
     pencil_side_into(*_reframe(PB, UB, sB, origin, length), Pp, Up, sp, 1)
-    balance_side(Pp, Up, sp, 0)
-    balance_side(Pp, Up, sp, 1)
-    F = F_from_pencil(Pp, Up, sp)
-    return F, np.abs(F), origin, (Pp, Up, sp)
+    err = np.empty((2, 4, 4))
+    err[0] = _reframed_errors(PA, UA, sA, errA, origin, length)
+    err[1] = _reframed_errors(PB, UB, sB, errB, origin, length)
+    return (Pp, Up, sp), err, origin
 
 
 @_jit
@@ -1006,10 +1280,11 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
                              Pp, Up, sp, 1)
         else:
             rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
-    balance_side(Pp, Up, sp, 0)
-    balance_side(Pp, Up, sp, 1)
-    F = F_from_pencil(Pp, Up, sp)
-    status0, intervals, u, certified, lo, hi = solve_intervals(F, np.abs(F), NOISE, t_max, first_only)
+    err = np.empty((2, 4, 4))
+    zero = np.zeros(3)
+    err[0] = pose_side_errors(ra, length, zero, zero, translating)
+    err[1] = pose_side_errors(rb, length, (pb0 - pa0) / length, (pb1 - pa1) / length, False)
+    status0, intervals, bounds, u, reached = solve_balanced(Pp, Up, sp, err, t_max, first_only)
     point = np.zeros(3)
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
@@ -1021,13 +1296,38 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
         for m in range(3):
             point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
             normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
-    return status0, intervals, point, normal, certified, lo, hi
+    return status0, intervals, bounds, point, normal, reached
+
+
+@_jit
+def solve_balanced(Pp, Up, sp, err, t_max, first_only):
+    """Balance the pencil, build F and solve it: first with the cheap constant error bound, again with the
+    coefficient-wise one when that leaves a bracket wider than TIME_TOL.  See :func:`solve_intervals`.
+
+    ``err`` (2, 4, 4): bounds of each side's entry errors before balancing.
+    """
+    inv = np.empty(2)
+    inv[0] = balance_side(Pp, Up, sp, 0)
+    inv[1] = balance_side(Pp, Up, sp, 1)
+    D = entry_errors_balanced(err, inv, _entry_maxima(Pp, Up, sp))
+    F = F_from_pencil(Pp, Up, sp)
+    E = error_bound_global(F, Pp, Up, sp, D)
+    status0, intervals, bounds, u, reached = solve_intervals(F, E, t_max, first_only)
+    certified, _, _ = verdict(intervals, bounds, reached, t_max)
+    if certified:
+        return status0, intervals, bounds, u, reached
+    E = error_bound_tight(F, Pp, Up, sp, D)
+    return solve_intervals(F, E, t_max, first_only)
 
 
 @_jit
 def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
-    """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it."""
-    return two_pose_pair(affine, affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
+    """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it:
+    (status at start, intervals, point, normal, certified, bracket_lo, bracket_hi), see :func:`verdict`."""
+    status0, intervals, bounds, point, normal, reached = two_pose_pair(
+        affine, affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
+    certified, lo, hi = verdict(intervals, bounds, reached, t_max)
+    return status0, intervals, point, normal, certified, lo, hi
 
 
 @_jit
@@ -1110,8 +1410,10 @@ class PairSolution:
     intervals: np.ndarray      # (k, 2) maximal non-separate intervals, normalised time
     point: object              # world touch point of the first contact (t > 0), or None
     normal: object             # unit normal there, outward from the first body, or None
-    certified: bool            # False: a limit was hit; the first contact lies in ``bracket``
+    certified: bool            # False: a limit was hit or a bracket stayed wide; the first contact lies in ``bracket``
     bracket: tuple             # (lo, hi) holding every possible first contact; (-1, -1) for none
+    bounds: np.ndarray = None  # (k, 4) proven brackets [in_lo, in_hi, out_lo, out_hi] of the intervals' ends
+    reached: float = -1.0      # when a search limit stopped the solve: the time up to which it is complete
 
 
 def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
@@ -1125,34 +1427,116 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     status0 = None
     point = normal = None
     certified, bracket = True, (-1.0, -1.0)
+    all_bounds = []
+    reached = -1.0
     for t0, t1 in zip(edges[:-1], edges[1:]):
-        F, Fabs, frame_origin, pencil = prepare_pair(*local_a.quadric_on(a.radii, t0, t1),
-                                                     *local_b.quadric_on(b.radii, t0, t1), length)
-        code, piece, u, certified, lo, hi = solve_intervals(F, Fabs, NOISE, 1.0, first_only and not intervals)
+        pencil, err, frame_origin = prepare_pair(*local_a.quadric_bounded_on(a.radii, t0, t1),
+                                                 *local_b.quadric_bounded_on(b.radii, t0, t1), length)
+        code, piece, bounds, u, piece_reached = solve_balanced(*pencil, err, 1.0, first_only and not intervals)
         if status0 is None:
             status0 = int(code)
         width = t1 - t0
-        for s_in, s_out in piece:
+        for (s_in, s_out), box in zip(piece, bounds):
             t_in, t_out = t0 + s_in * width, t0 + s_out * width
+            box = t0 + box * width
             if intervals and t_in - intervals[-1][1] <= 1e-12:
                 intervals[-1][1] = t_out
+                all_bounds[-1][2:] = box[2:]
                 continue
             if not intervals and status0 == 1:
                 point, normal = touching_point(pencil_quadric_at(*pencil, 0, s_in),
                                                pencil_quadric_at(*pencil, 1, s_in), u)
                 point = origin + frame_origin + length * point
-                bracket = (t_in, t_in)
             intervals.append([t_in, t_out])
-        if not certified:
-            if not intervals:
-                bracket = (t0 + lo * width, t0 + hi * width)
+            all_bounds.append(box)
+        if piece_reached >= 0.0:
+            reached = t0 + piece_reached * width
             break
         if first_only and intervals:
             break
     if first_only and intervals:
         intervals = intervals[:1]
         intervals[0][1] = intervals[0][0]
-    return PairSolution(status0, np.array(intervals, float).reshape(-1, 2), point, normal, certified, bracket)
+        all_bounds = all_bounds[:1]
+    intervals = np.array(intervals, float).reshape(-1, 2)
+    all_bounds = np.array(all_bounds, float).reshape(-1, 4)
+    certified, lo, hi = verdict(intervals, all_bounds, reached, t_max)
+    return PairSolution(status0, intervals, point, normal, bool(certified), (float(lo), float(hi)), all_bounds,
+                        reached)
+
+
+class _ExactPair:
+    """The pair in A's local frame, for decisions in rational arithmetic (:mod:`mjccd.exact`)."""
+
+    def __init__(self, a, motion_a, b, motion_b):
+        self.a, self.b = a, b
+        self.origin = np.asarray(motion_a.anchor(), float)
+        self.local_a, self.local_b = motion_a.translated(self.origin), motion_b.translated(self.origin)
+
+    def status(self, t):
+        """Exact status (1, 0, -1) at the rational time t."""
+        return exact.static_status_exact(self.local_a.exact_quadric_at(self.a.radii, t),
+                                         self.local_b.exact_quadric_at(self.b.radii, t))
+
+    def separation_change(self, lo, hi, separate_at_lo):
+        """A time within 2^-60 relative of where the exact status changes to or from separate in (lo, hi],
+        by bisection on dyadic times; None when the ends do not differ as expected."""
+        lo, hi = Fraction(lo), Fraction(hi)
+        if (self.status(lo) == 1) != separate_at_lo or (self.status(hi) == 1) == separate_at_lo:
+            return None
+        while hi - lo > Fraction(2) ** -60 * max(hi, Fraction(2) ** -1000):
+            mid = (lo + hi) / 2
+            if (self.status(mid) == 1) == separate_at_lo:
+                lo = mid
+            else:
+                hi = mid
+        return float(hi)
+
+    def touch(self, t):
+        """World touch point and normal of the pair at time t (double precision)."""
+        length = float(max(self.a.radii.max(), self.b.radii.max()))
+        pencil, _, frame_origin = prepare_pair(*self.local_a.quadric_bounded_on(self.a.radii, 0.0, 1.0),
+                                               *self.local_b.quadric_bounded_on(self.b.radii, 0.0, 1.0), length)
+        Pp, Up, sp = pencil
+        balance_side(Pp, Up, sp, 0)
+        balance_side(Pp, Up, sp, 1)
+        u = state(F_from_pencil(Pp, Up, sp), t)[1]
+        point, normal = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
+        return self.origin + frame_origin + length * point, normal
+
+
+def _refine_exactly(a, motion_a, b, motion_b, solution):
+    """Events whose proven bracket is wider than TIME_TOL, settled by bisection on the exact status.
+
+    Double precision proved the pair separate before each start bracket and
+    overlapping (or touching) at its end, and the reverse around each end;
+    the exact status at dyadic times inside the bracket finds where it
+    changes.  An event whose ends the exact status does not confirm (a graze
+    inside the rounding band that may be a miss) stays uncertain.
+    """
+    pair = _ExactPair(a, motion_a, b, motion_b)
+    intervals = solution.intervals.copy()
+    bounds = solution.bounds.copy()
+    certified = True
+    for k in range(len(intervals)):
+        for end, (lo, hi), separate_at_lo in ((0, bounds[k, 0:2], True), (1, bounds[k, 2:4], False)):
+            if hi - lo <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
+                continue
+            t = pair.separation_change(lo, hi, separate_at_lo)
+            if t is None:  # a bracket end the exact status does not confirm: try the middle of the interval
+                middle = 0.5 * (intervals[k, 0] + intervals[k, 1])
+                t = pair.separation_change(*((lo, middle) if end == 0 else (middle, hi)), separate_at_lo)
+            if t is None:
+                certified = False
+                continue
+            intervals[k, end] = t
+            bounds[k, 2 * end:2 * end + 2] = t
+    point, normal = solution.point, solution.normal
+    if len(intervals) and solution.status_at_start == 1 and intervals[0, 0] != solution.intervals[0, 0]:
+        point, normal = pair.touch(float(intervals[0, 0]))
+    lo, hi = (bounds[0, 0], bounds[0, 1]) if len(intervals) else solution.bracket
+    return replace(solution, intervals=intervals, bounds=bounds, point=point, normal=normal, certified=certified,
+                   bracket=(float(lo), float(hi)))
 
 
 def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
@@ -1161,43 +1545,31 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
     Touching or overlapping: the double answer stands.  Separate (e.g. a gap
     of 1e-12 that closes at once): the first contact is where the exact
     status first leaves "separate" inside the double's first interval,
-    bracketed by probes 2^-k and bisected on dyadic times.
+    bracketed by probes end * 2^-k and bisected on dyadic times.
     """
-    origin = motion_a.anchor()
-    local_a, local_b = motion_a.translated(origin), motion_b.translated(origin)
-
-    def exact_status(t):
-        return exact.static_status_exact(local_a.exact_quadric_at(a.radii, t), local_b.exact_quadric_at(b.radii, t))
-
-    code = exact_status(Fraction(0))
+    pair = _ExactPair(a, motion_a, b, motion_b)
+    code = pair.status(Fraction(0))
     if code != 1:
         return replace(solution, status_at_start=code)
     end = Fraction(float(solution.intervals[0, 1])) if len(solution.intervals) else Fraction(0)
     end = max(end, Fraction(TOUCH_SPAN))
-    lo, hi = Fraction(0), None
+    lo = hi = None
     for k in range(EXACT_PROBES, 0, -1):
         probe = end / 2 ** k
-        if exact_status(probe) != 1:
+        if pair.status(probe) != 1:
             hi = probe
             break
         lo = probe
-    if hi is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
+    t = None if hi is None else pair.separation_change(lo or Fraction(0), hi, True)
+    if t is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
         return replace(solution, status_at_start=1, intervals=solution.intervals[1:], certified=False,
                        bracket=(0.0, float(end)), point=None, normal=None)
-    while hi - lo > Fraction(2) ** -60 * max(hi, Fraction(2) ** -1000):
-        mid = (lo + hi) / 2
-        lo, hi = (mid, hi) if exact_status(mid) == 1 else (lo, mid)
-    t = float(hi)
     intervals = solution.intervals.copy()
     intervals[0, 0] = t
     if first_only:
         intervals[0, 1] = t
-    F, _, frame_origin, pencil = prepare_pair(*local_a.quadric(a.radii), *local_b.quadric(b.radii),
-                                              float(max(a.radii.max(), b.radii.max())))
-    point, normal = touching_point(pencil_quadric_at(*pencil, 0, t), pencil_quadric_at(*pencil, 1, t), state(F, t)[1])
-    length = float(max(a.radii.max(), b.radii.max()))
-    return replace(solution, status_at_start=1, intervals=intervals, point=origin + frame_origin + length * point,
-                   normal=normal, bracket=(t, t))
+    point, normal = pair.touch(t)
+    return replace(solution, status_at_start=1, intervals=intervals, point=point, normal=normal, bracket=(t, t))
 
 
 def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
@@ -1212,13 +1584,16 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     if pose_a is None or pose_b is None:
         solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
     else:
-        status0, intervals, point, normal, certified, lo, hi = two_pose_pair(
+        status0, intervals, bounds, point, normal, reached = two_pose_pair(
             pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
+        certified, lo, hi = verdict(intervals, bounds, reached, t_max)
         touch = status0 == 1 and len(intervals) > 0
         solution = PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
-                                bool(certified), (float(lo), float(hi)))
+                                bool(certified), (float(lo), float(hi)), bounds, float(reached))
     if solution.status_at_start == 0:
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
+    elif not solution.certified and solution.reached < 0.0:
+        solution = _refine_exactly(a, motion_a, b, motion_b, solution)
     return solution
 
 
@@ -1252,7 +1627,7 @@ def _contact(solution):
         time = float(solution.intervals[0, 0])
         if solution.certified:
             return Contact(time, solution.point, solution.normal, status)
-        return Contact(time, solution.point, solution.normal, status, "uncertain", (time, time))
+        return Contact(time, solution.point, solution.normal, status, "uncertain", solution.bracket)
     if solution.certified:
         return None
     lo, hi = solution.bracket

@@ -25,6 +25,7 @@ from mjccd import bernstein as bz
 from mjccd.quadric import quat_to_matrix
 
 _jit = numba.njit(cache=True, nogil=True)
+EPS = 2.220446049250313e-16
 
 
 # ---------------------------------------------------------------- kernels
@@ -289,6 +290,72 @@ def quadric_affine(radii, p0, q0, p1, q1):
 
 
 @_jit
+def _gamma(k):
+    """gamma_k = k u / (1 - k u): the relative error bound of k rounded operations (u the unit roundoff)."""
+    return k * EPS / (1.0 - k * EPS)
+
+
+@_jit
+def pose_side_errors(radii, length, c0, c1, identity):
+    """Error bounds (4x4, plain-coefficient units) of a two-pose side built by :func:`rigid_scaled_into`,
+    :func:`translation_scaled_into` or :func:`quadric_affine` in the frame scaled by ``length``.
+
+    With d_k = (length / r_k)^2, S = sum d_k and C the largest |centre|_1 at
+    the two ends: every rotation coefficient is at most |q|^2 <= 1, so P's
+    terms add up to at most S, U's to S C and s's to S C^2 + 1; a few dozen
+    roundings each.  ``identity``: the side's orientation is exactly the
+    identity at both ends and its centre the origin (A in its own frame):
+    P = diag(d) (d rounded), U = 0 and s = -1 exactly.
+    """
+    e = np.zeros((4, 4))
+    d0 = (length / radii[0]) ** 2
+    d1 = (length / radii[1]) ** 2
+    d2 = (length / radii[2]) ** 2
+    if identity:
+        e[0, 0] = 3.0 * EPS * d0
+        e[1, 1] = 3.0 * EPS * d1
+        e[2, 2] = 3.0 * EPS * d2
+        return e
+    S = d0 + d1 + d2
+    C = max(abs(c0[0]) + abs(c0[1]) + abs(c0[2]), abs(c1[0]) + abs(c1[1]) + abs(c1[2]))
+    for i in range(3):
+        for j in range(3):
+            e[i, j] = _gamma(80) * S
+        e[i, 3] = e[3, i] = _gamma(100) * S * C
+    e[3, 3] = _gamma(120) * (S * C * C + 1.0)
+    return e
+
+
+@_jit
+def w_quadric_errors(G, h, g, radii):
+    """Error bounds (4x4, plain-coefficient units) of :func:`quadric_from_w` on these W polynomials.
+
+    P = G^T D G, U = G^T D h, s = h^T D h - g^2 with Bernstein products: each
+    entry's terms add up to at most the same sums over the coefficients'
+    maxima, and each product and sum rounds a bounded number of times (the W
+    coefficients are the motion's definition; restricting them to a piece
+    perturbs them by gamma_2n, covered here too).
+    """
+    n = max(G.shape[2], h.shape[1], g.shape[0])
+    rho = _gamma(6 * n + 40)
+    d = 1.0 / (radii * radii)
+    Gm = np.empty((3, 3))
+    hm = np.empty(3)
+    for k in range(3):
+        for i in range(3):
+            Gm[k, i] = np.abs(G[k, i]).max()
+        hm[k] = np.abs(h[k]).max()
+    gm = np.abs(g).max()
+    e = np.empty((4, 4))
+    for i in range(3):
+        for j in range(3):
+            e[i, j] = rho * (d[0] * Gm[0, i] * Gm[0, j] + d[1] * Gm[1, i] * Gm[1, j] + d[2] * Gm[2, i] * Gm[2, j])
+        e[i, 3] = e[3, i] = rho * (d[0] * Gm[0, i] * hm[0] + d[1] * Gm[1, i] * hm[1] + d[2] * Gm[2, i] * hm[2])
+    e[3, 3] = rho * (d[0] * hm[0] ** 2 + d[1] * hm[1] ** 2 + d[2] * hm[2] ** 2 + gm * gm)
+    return e
+
+
+@_jit
 def quadric_at(P, U, s, t):
     """The 4x4 quadric matrix at time t (up to the motion's positive factor)."""
     A = np.empty((4, 4))
@@ -407,6 +474,10 @@ class Motion(abc.ABC):
     def exact_quadric_at(self, radii, t):
         """The 4x4 quadric at the rational time t (Fractions), exact for this motion's doubles (up to a factor > 0)."""
 
+    @abc.abstractmethod
+    def quadric_bounded_on(self, radii, t0, t1):
+        """(P, U, s, err) over [t0, t1]: :meth:`quadric_on` and a 4x4 bound of its coefficients' rounding errors."""
+
     def quadric_on(self, radii, t0, t1):
         """(P, U, s) of this motion over [t0, t1], reparametrised onto [0, 1]."""
         P, U, s = self.quadric(radii)
@@ -434,6 +505,13 @@ class _WMotion(Motion):
 
     def factor(self):
         return self._w[2]
+
+    def quadric_bounded_on(self, radii, t0, t1):
+        G, h, g = self._w
+        if not (t0 == 0.0 and t1 == 1.0):
+            G, h, g = _restrict_all(G, t0, t1), _restrict_all(h, t0, t1), bz.restrict(g.copy(), t0, t1)
+        radii = np.asarray(radii, float)
+        return (*quadric_from_w(G, h, g, radii), w_quadric_errors(G, h, g, radii))
 
     def exact_quadric_at(self, radii, t):
         G, h, g = self._w
@@ -505,6 +583,12 @@ class _TwoPoses:
         return None
 
     quadric_on = Motion.quadric_on
+
+    def quadric_bounded_on(self, radii, t0, t1):
+        """The centre lerp in this frame (unit 1): :func:`pose_side_errors`, plus the restriction's rounding."""
+        radii = np.asarray(radii, float)
+        err = pose_side_errors(radii, 1.0, self.position0, self.position1, False)
+        return (*self.quadric_on(radii, t0, t1), 1.25 * err)  # restriction: gamma_12 more than gamma_80 and up
 
     def _exact_pose_at(self, t):
         """Centre and (unnormalised) quaternion lerps at the rational time t, exactly."""

@@ -28,7 +28,7 @@ MOTIONS = ("rigid", "affine", "chain")
 BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
 # filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
 COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlapping_t0", "solved_exactly",
-                 "colliding", "pruned")
+                 "colliding", "pruned", "uncertain")
 
 
 class ReplayError(ValueError):
@@ -222,7 +222,10 @@ class FrameChecker:
             res = self.scene.step(np.concatenate([pos0, quat0], axis=1), np.concatenate([pos1, quat1], axis=1),
                                   all_pairs=True)
             for c in res.contacts:
-                if c.point is None:
+                if c.certainty != "certified" and c.point is None and c.bracket[1] > 0.0:
+                    self._toi[c.pair] = c.time  # uncertain: a possible contact from the bracket's start
+                    self._point[c.pair] = self._normal[c.pair] = 0.0
+                elif c.point is None:
                     self._status[c.pair], self._toi[c.pair] = -1, 0.0
                 else:
                     self._toi[c.pair] = c.time
@@ -241,6 +244,12 @@ class FrameChecker:
             self.counters["solved_exactly"] += 1
             c = first_contact(Ellipsoid(radii[i]), motions[i], Ellipsoid(radii[j]), motions[j])
             if c is None:
+                continue
+            if c.certainty != "certified":
+                self.counters["uncertain"] += 1
+            if c.certainty != "certified" and c.point is None and c.status_at_start == "separate":
+                self._toi[k] = c.time  # uncertain: a possible contact from the bracket's start (not colliding)
+                self._point[k] = self._normal[k] = 0.0
                 continue
             self.counters["colliding"] += 1
             if c.point is None:
@@ -394,12 +403,12 @@ def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
     """All collision intervals of every pair over one chain-motion segment (thesis Table 6 style).
 
     Each row: the pair, the motion degree (largest degree in t of the two
-    motions' scaled inverses), the degree of F in t, the time to build F (the
-    pair's quadric polynomials and F), the time to solve, and the intervals
+    motions' scaled inverses), the degree of F in t, the time to build the pair (the
+    pair's quadric polynomials and their pencil), the time to build F and solve, and the intervals
     (normalised time).  Times are the best of ``repeat`` runs, after one
     untimed run that compiles.
     """
-    from mjccd.ccd import NOISE, prepare_pair, solve_intervals
+    from mjccd.ccd import degree_in_t, prepare_pair, solve_balanced
 
     motions = [chain_motion(model, g, qpos0, qpos1) for g in bounds.geom_ids]
     rows = []
@@ -407,17 +416,17 @@ def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
         best_build = best_solve = math.inf
         for _ in range(repeat + 1):
             t0 = _time.perf_counter()
-            qa = motions[i].quadric(bounds.radii[i])
-            qb = motions[j].quadric(bounds.radii[j])
+            qa = motions[i].quadric_bounded_on(bounds.radii[i], 0.0, 1.0)
+            qb = motions[j].quadric_bounded_on(bounds.radii[j], 0.0, 1.0)
             length = float(max(bounds.radii[i].max(), bounds.radii[j].max()))
-            F, Fabs, _, _ = prepare_pair(*qa, *qb, length)
+            pencil, err, _ = prepare_pair(*qa, *qb, length)
             t1 = _time.perf_counter()
-            status0, intervals, _, _, _, _ = solve_intervals(F, Fabs, NOISE, 1.0, False)
+            status0, intervals, _, _, _ = solve_balanced(*pencil, err, 1.0, False)
             t2 = _time.perf_counter()
             best_build, best_solve = min(best_build, t1 - t0), min(best_solve, t2 - t1)
         rows.append({"pair": [bounds.labels[i], bounds.labels[j]],
                      "motion_degree": int(max(qa[0].shape[2], qb[0].shape[2]) - 1) // 2,
-                     "F_degree_t": int(F.shape[1] - 1), "build_ms": best_build * 1e3,
+                     "F_degree_t": int(degree_in_t(*pencil)), "build_ms": best_build * 1e3,
                      "solve_ms": best_solve * 1e3, "status_at_start": int(status0),
                      "intervals": [[float(a), float(b)] for a, b in intervals]})
     return rows

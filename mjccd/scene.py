@@ -34,7 +34,7 @@ _inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helper
 SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED, UNCERTAIN = range(8)
 OUTCOME_NAMES = ("sphere", "cached_plane", "new_plane", "overlapping_t0", "exact_free",
                  "exact_colliding", "pruned_by_bound", "uncertain")
-N_COUNTERS = 8  # pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned
+N_COUNTERS = 9  # pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned, uncertain
 
 
 @intrinsic
@@ -146,10 +146,13 @@ def _new_plane(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, cache_n, cache_kind,
     solve (F of degree 2 in t) costs less than finding one separating plane.
     """
     ca0, ca1, cb0, cb1 = scratch[0], scratch[1], scratch[2], scratch[3]
-    if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) <= 0:
+    status0 = static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j])
+    if status0 == -1:
         return OVERLAP_T0
-    if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) <= 0:
-        return EXACT_FREE  # certainly not separate at t = 1: straight to the exact solver
+    if status0 != 1:  # touching or undecided (2): no plane, the exact solver decides from t = 0
+        return EXACT_FREE
+    if static_status_pose(radii[i], p1[i], q1[i], radii[j], p1[j], q1[j]) != 1:
+        return EXACT_FREE  # not certainly separate at t = 1: straight to the exact solver
     if same_orientation(q0[i], q1[i]) and same_orientation(q0[j], q1[j]):
         return EXACT_FREE
     ok, plane, _, _ = separating_plane_matrices(quadric_matrix(radii[i], ca0, q0[i]),
@@ -222,12 +225,17 @@ def _sort_by_entry(cand, m, entry):
 
 @_jit
 def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs,
-                new_only, timing, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws):
+                new_only, timing, outcome, entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws):
     """One frame over all pairs.  Fills the per-pair arrays and ``counters``; returns (best pair, rows, iv, owner).
 
     ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
     contact of pair k (-1 when none found), ``entry[k]`` its sphere-entry
-    time.  With ``all_pairs`` every pair not cleared by a filter is solved
+    time.  A pair on which the exact solver hit a limit gets the outcome
+    UNCERTAIN: ``times[k]`` and ``times_hi[k]`` are then its bracket (every
+    possible first contact lies in it; lo = hi when the first contact itself
+    is known and only later intervals are not), and it counts as a possible
+    contact at ``times[k]`` (``times_hi`` is written for UNCERTAIN pairs only).
+    With ``all_pairs`` every pair not cleared by a filter is solved
     over [0, 1] and its intervals are written to ``iv`` (``owner`` gives the
     pair of each row; both are replaced by larger arrays when full, so use the
     returned ones and their first ``rows`` rows); otherwise only the frame's
@@ -243,6 +251,7 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
     min_motion = _borrow(min_motion)
     cache_n, cache_kind, outcome, entry = _borrow(cache_n), _borrow(cache_kind), _borrow(outcome), _borrow(entry)
     times, points, normals, ticks, counters = _borrow(times), _borrow(points), _borrow(normals), _borrow(ticks), _borrow(counters)
+    times_hi = _borrow(times_hi)
     q1, rmax, S, den = _borrow(ws[0]), _borrow(ws[1]), _borrow(ws[2]), _borrow(ws[3])
     R0, R1, work, scratch = _borrow(ws[4]), _borrow(ws[5]), _borrow(ws[6]), _borrow(ws[7])
     cand, ready, aff_scratch = _borrow(ws[8]), _borrow(ws[9]), _borrow(ws[10])
@@ -324,14 +333,25 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
             counters[7] += 1
             continue
         t_max = 1.0 if all_pairs else min(best, 1.0)
-        status0, intervals, point, normal, certified, lo, _ = exact_pair(
+        status0, intervals, point, normal, certified, lo, hi = exact_pair(
             affine, radii[i], p0[i], q0[i], p1[i], q1[i], radii[j], p0[j], q0[j], p1[j], q1[j], t_max, not all_pairs)
-        if outcome[k] != OVERLAP_T0:
+        if outcome[k] == OVERLAP_T0:
+            if not certified:  # (all pairs only) contact at 0 for sure, later intervals not complete
+                outcome[k] = UNCERTAIN
+                times_hi[k] = 0.0
+                counters[8] += 1
+        else:
             counters[5] += 1
             if intervals.shape[0] > 0 or not certified:  # an uncertain pair is a possible contact at lo
-                outcome[k] = EXACT_HIT if certified else UNCERTAIN
-                counters[6] += 1
                 t = lo if intervals.shape[0] == 0 else (intervals[0, 0] if status0 == 1 else 0.0)
+                if intervals.shape[0] > 0:  # a first contact found: colliding (an honest count)
+                    counters[6] += 1
+                if certified:
+                    outcome[k] = EXACT_HIT
+                else:
+                    outcome[k] = UNCERTAIN
+                    times_hi[k] = hi if intervals.shape[0] == 0 else t
+                    counters[8] += 1
                 times[k] = t
                 points[k] = point
                 normals[k] = normal
@@ -357,7 +377,7 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
 @_jit
 def run_kernel(affine, radii, positions, quats, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only,
                timing, best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks,
-               entry, times, points, normals, iv, owner, ws):
+               entry, times, times_hi, points, normals, iv, owner, ws):
     """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache.
 
     ``all_pairs`` must be False (first contacts only; it is an argument so that
@@ -371,13 +391,14 @@ def run_kernel(affine, radii, positions, quats, pairs, min_motion, use_cache, ca
     min_motion = _borrow(min_motion)
     counters, outcomes, ticks = _borrow(counters), _borrow(outcomes), _borrow(ticks)
     entry, times, points, normals = _borrow(entry), _borrow(times), _borrow(points), _borrow(normals)
+    times_hi = _borrow(times_hi)
     t_start = 0
     for f in range(positions.shape[0] - 1):
         if timing:
             t_start = _ticks()
         k, _, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
                                  min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only, timing, outcomes[f], entry, times,
-                                 points, normals, ticks[f], counters[f], iv, owner, ws)
+                                 times_hi, points, normals, ticks[f], counters[f], iv, owner, ws)
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
         if k >= 0:
@@ -398,6 +419,13 @@ class PairContact:
     (world) and ``normal`` (unit, outward from ``bodies[0]``) are None then.
     ``intervals`` lists the maximal non-separation intervals (only when every
     colliding pair was asked for; empty otherwise).
+
+    ``certainty`` is "certified", or "uncertain" when the exact solver hit one
+    of its limits on this pair: then ``bracket`` = (lo, hi) holds every
+    possible first contact, ``time`` is lo, and point and normal are None
+    unless the first contact itself was found (lo == hi; with ``all_pairs``
+    only, its later ``intervals`` are then incomplete).  An uncertain pair is a
+    possible contact at lo, never "no contact".
     """
 
     pair: int
@@ -406,6 +434,8 @@ class PairContact:
     point: object
     normal: object
     intervals: tuple = ()
+    certainty: str = "certified"
+    bracket: tuple = None
 
 
 @dataclass(frozen=True)
@@ -414,7 +444,11 @@ class FrameCounters:
 
     ``colliding`` counts the pairs found colliding; when only the first contact
     is sought, pairs whose spheres meet after it are ``pruned`` instead of
-    solved, so it is a lower bound then.
+    solved, so it is a lower bound then.  ``uncertain`` counts the pairs on
+    which the exact solver hit a limit (outcome "uncertain"): each is a
+    possible contact within its bracket and is not counted as colliding unless
+    its first contact was found (with ``all_pairs``, when only a later interval
+    was left open).
     """
 
     pairs: int
@@ -425,6 +459,7 @@ class FrameCounters:
     solved_exactly: int
     colliding: int
     pruned: int
+    uncertain: int
 
     @classmethod
     def from_array(cls, c):
@@ -433,11 +468,19 @@ class FrameCounters:
 
 @dataclass(frozen=True)
 class FrameResult:
-    """Result of :meth:`Scene.step`: the first contact (or None), all contacts when asked, counters."""
+    """Result of :meth:`Scene.step`: the first contact (or None), all contacts when asked, counters.
+
+    ``certainty`` is "uncertain" when a reported contact is (the first one, or
+    with ``all_pairs`` any of ``contacts``; see :class:`PairContact`), else
+    "certified".  ``counters.uncertain`` also counts uncertain pairs that
+    cannot change the answer (their bracket starts at or after the first
+    contact).
+    """
 
     first: object
     contacts: tuple
     counters: FrameCounters
+    certainty: str
 
 
 @dataclass(frozen=True)
@@ -446,7 +489,10 @@ class RunResult:
 
     ``time[f]`` is the first contact of frame f (-1 when none), ``pair[f]`` its
     pair index (-1), ``point``/``normal`` (F, 3) zero when none or at t = 0;
-    ``counters`` (F, 8) in the order of :class:`FrameCounters`; ``outcomes``
+    ``uncertain`` (F,) int8 is 1 where that first contact is uncertain (then
+    ``time[f]`` is the low end of its bracket and point and normal are zero;
+    :meth:`Scene.step` gives the bracket); ``counters`` (F, 9) in the order of
+    :class:`FrameCounters`; ``outcomes``
     (F, P) the outcome code of every pair (see ``OUTCOME_NAMES``); ``ticks``
     (F, P) CPU cycles per pair and ``frame_ticks`` (F,) per frame when timing
     was asked for (zero otherwise).
@@ -460,6 +506,39 @@ class RunResult:
     outcomes: np.ndarray
     ticks: np.ndarray
     frame_ticks: np.ndarray
+    uncertain: np.ndarray
+
+
+def pair_contact(pairs, k, outcome, times, times_hi, points, normals, intervals=()):
+    """The :class:`PairContact` of pair k from the per-pair arrays :func:`step_kernel` filled."""
+    t = float(times[k])
+    uncertain = int(outcome[k]) == UNCERTAIN
+    no_touch = (t == 0.0 or uncertain) and not np.any(normals[k])
+    return PairContact(int(k), (int(pairs[k, 0]), int(pairs[k, 1])), t,
+                       None if no_touch else points[k].copy(), None if no_touch else normals[k].copy(),
+                       intervals, "uncertain" if uncertain else "certified",
+                       (t, float(times_hi[k])) if uncertain else None)
+
+
+def frame_result(pairs, best_k, outcome, times, times_hi, points, normals, counters, rows=None):
+    """The :class:`FrameResult` of one :func:`step_kernel` call (a pure function of its arrays).
+
+    ``best_k`` is the kernel's first pair (-1: none); ``rows`` (all pairs
+    asked) the intervals of each pair as ``(iv, owner)``, the kernel's first
+    ``rows`` rows; None when only the first contact was sought.
+    """
+    first = None if best_k < 0 else pair_contact(pairs, best_k, outcome, times, times_hi, points, normals)
+    contacts = ()
+    if rows is not None:
+        by_pair = {}
+        for (a, b), k in zip(*rows):
+            by_pair.setdefault(int(k), []).append((float(a), float(b)))
+        contacts = tuple(pair_contact(pairs, k, outcome, times, times_hi, points, normals,
+                                      tuple(by_pair.get(k, ())))
+                         for k in np.nonzero(times >= 0.0)[0].tolist())
+    uncertain = any(c is not None and c.certainty == "uncertain" for c in (first,) + contacts)
+    return FrameResult(first, contacts, FrameCounters.from_array(counters),
+                       "uncertain" if uncertain else "certified")
 
 
 def all_pairs(n):
@@ -523,7 +602,7 @@ class Scene:
         n, npairs = len(self.radii), len(self.pairs)
         # per-frame arrays of step and run, reused (results copy what they keep)
         self._buffers = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 4)),
-                         np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs),
+                         np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs), np.zeros(npairs),
                          np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
                          np.zeros(N_COUNTERS, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
                          workspace(self.radii, npairs, self.motion == "affine"))
@@ -557,30 +636,17 @@ class Scene:
         Returns:
             :class:`FrameResult`.
         """
-        p0, q0, p1, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = self._buffers
+        p0, q0, p1, q1, outcome, entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws = \
+            self._buffers
         self._poses(poses_t0, "poses_t0", p0, q0)
         self._poses(poses_t1, "poses_t1", p1, q1)
         best_k, niv, iv, owner = step_kernel(
             self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.min_motion, self.plane_cache,
             self._cache_n,
-            self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, points,
-            normals, ticks, counters, iv, owner, ws)
-        first = None if best_k < 0 else self._contact(best_k, times, points, normals, ())
-        contacts = ()
-        if all_pairs:
-            rows = {}
-            for (a, b), k in zip(iv[:niv], owner[:niv]):
-                rows.setdefault(int(k), []).append((float(a), float(b)))
-            contacts = tuple(self._contact(k, times, points, normals, tuple(rows.get(k, ())))
-                             for k in np.nonzero(times >= 0.0)[0].tolist())
-        return FrameResult(first, contacts, FrameCounters.from_array(counters))
-
-    def _contact(self, k, times, points, normals, intervals):
-        t = float(times[k])
-        at_start = t == 0.0 and not np.any(normals[k])
-        return PairContact(int(k), (int(self.pairs[k, 0]), int(self.pairs[k, 1])), t,
-                           None if at_start else points[k].copy(), None if at_start else normals[k].copy(),
-                           intervals)
+            self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, times_hi,
+            points, normals, ticks, counters, iv, owner, ws)
+        return frame_result(self.pairs, best_k, outcome, times, times_hi, points, normals, counters,
+                            (iv[:niv], owner[:niv]) if all_pairs else None)
 
     def run(self, poses, *, timing=False, new_contacts_only=False):
         """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
@@ -602,10 +668,13 @@ class Scene:
         npairs = len(self.pairs)
         out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
-                        np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
-        _, _, _, _, _, entry, times, points, normals, _, _, iv, owner, ws = self._buffers
+                        np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64),
+                        np.zeros(nf, dtype=np.int8))
+        _, _, _, _, _, entry, times, times_hi, points, normals, _, _, iv, owner, ws = self._buffers
         run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.min_motion,
                    self.plane_cache, self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing),
                    out.time, out.pair, out.point, out.normal, out.counters, out.outcomes, out.ticks, out.frame_ticks,
-                   entry, times, points, normals, iv, owner, ws)
+                   entry, times, times_hi, points, normals, iv, owner, ws)
+        hit = np.flatnonzero(out.pair >= 0)
+        out.uncertain[hit] = out.outcomes[hit, out.pair[hit]] == UNCERTAIN
         return out

@@ -71,15 +71,30 @@ def _states(model, qpos, times):
     return [State(q, mpos, mquat, float(t)) for q, t in zip(qpos, times)]
 
 
+def _uncertain(c):
+    return getattr(c, "certainty", "certified") != "certified"
+
+
+def _bracket(c):
+    lo, hi = c.bracket
+    return f"[{lo:.9g}, {hi:.9g}] s"
+
+
 def _describe(c):
     where = "" if c.point is None else (f" at point {np.array2string(c.point, precision=6)}"
                                         f" normal {np.array2string(c.normal, precision=6)}")
+    if _uncertain(c):
+        return (f"uncertain: a contact is possible in {_bracket(c)} ({c.bodies[0]!r}-{c.bodies[1]!r}, "
+                f"{c.status_at_start} at step start; the solver hit a limit)" + where)
     return (f"t = {c.time:.9g} s ({c.bodies[0]!r}-{c.bodies[1]!r}, {c.status_at_start} at step start)"
             + where)
 
 
 def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None):
-    """First contact of every step of a qpos trajectory: a list of ``StepContact`` (steps without one skipped)."""
+    """First contact of every step of a qpos trajectory: a list of ``StepContact`` (steps without one skipped).
+
+    A step whose answer is uncertain is listed too (``certainty == "uncertain"``, ``bracket`` in seconds).
+    """
     model, qpos, times, ellipsoids = _setup(model, trajectory, ellipsoids, times)
     monitor = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs=pairs, motion=motion)
     states = _states(model, qpos, times)
@@ -94,6 +109,10 @@ def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motio
 def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
     """Assert that the bodies of ``pair`` first touch at ``time`` seconds (within ``tol``) along the trajectory.
 
+    An uncertain answer (the exact solver hit a limit: the first contact is only known to lie
+    in a bracket [lo, hi]) passes only when ``time`` lies in that bracket (widened by ``tol``);
+    otherwise it fails, naming the bracket.  Returns the found ``StepContact``.
+
     Args:
         model: ``MjModel``, MJCF path or MJCF string.
         trajectory: (T, nq) qpos rows, or an ``.npz`` with ``qpos`` (and ``time``).
@@ -107,18 +126,34 @@ def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=
         qpos_times = load_trajectory(trajectory, load_model(model), times)[1]
         raise AssertionError(f"{head}, found no contact over [{qpos_times[0]:.9g}, {qpos_times[-1]:.9g}] s")
     c = found[0]
+    if _uncertain(c):
+        lo, hi = c.bracket
+        if not lo - tol <= time <= hi + tol:
+            raise AssertionError(f"{head}, found {_describe(c)}; {time:.9g} s is outside that bracket")
+        return c
     if abs(c.time - time) > tol:
         raise AssertionError(f"{head}, found {_describe(c)}; off by {c.time - time:+.3g} s")
     return c
 
 
 def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None, show=5):
-    """Assert that no pair (default: :func:`~mjccd.mujoco.default_pairs`) touches along the trajectory."""
+    """Assert that no pair (default: :func:`~mjccd.mujoco.default_pairs`) touches along the trajectory.
+
+    An uncertain answer (the exact solver hit a limit and could not certify the pair free) fails
+    too: a contact is possible within its bracket, and the message names it.
+    """
     found = trajectory_contacts(model, trajectory, pairs=pairs, ellipsoids=ellipsoids, motion=motion, times=times)
     if found:
         lines = "\n".join("  " + _describe(c) for c in found[:show])
         more = f"\n  ... and {len(found) - show} more" if len(found) > show else ""
-        raise AssertionError(f"expected no contact, found contacts in {len(found)} step(s):\n{lines}{more}")
+        unsure = sum(_uncertain(c) for c in found)
+        if unsure == len(found):
+            head = f"expected no contact, could not certify it: uncertain answers in {len(found)} step(s)"
+        elif unsure:
+            head = f"expected no contact, found contacts in {len(found)} step(s) ({unsure} uncertain)"
+        else:
+            head = f"expected no contact, found contacts in {len(found)} step(s)"
+        raise AssertionError(f"{head}:\n{lines}{more}")
 
 
 def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid", times=None):

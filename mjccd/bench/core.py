@@ -142,8 +142,10 @@ def run(n_queries, repeats, n_static, seed, with_peers):
     sections.update()
 
     chain = six_hinge_chain()
-    from mjccd.ccd import prepare_pair
-    degree = prepare_pair(*chain[1].quadric(chain[0].radii), *chain[3].quadric(chain[2].radii), 1.0)[0].shape[1] - 1
+    from mjccd.ccd import degree_in_t, prepare_pair
+    pencil, _, _ = prepare_pair(*chain[1].quadric_bounded_on(chain[0].radii, 0.0, 1.0),
+                                *chain[3].quadric_bounded_on(chain[2].radii, 0.0, 1.0), 1.0)
+    degree = degree_in_t(*pencil)
     c = mjccd.first_contact(*chain)
     rows.append((f"six-hinge chain link vs static (F degree {degree})",
                  _per_query_median([chain], lambda a: mjccd.first_contact(*a), max(repeats, 20)),

@@ -6,8 +6,8 @@ import numpy as np
 
 from mjccd.ccd import first_contact
 from mjccd.motion import Static
-from mjccd.quadric import Ellipsoid, static_status_pose
-from mjccd.scene import Scene, step_kernel
+from mjccd.quadric import Ellipsoid, static_status_code
+from mjccd.scene import UNCERTAIN, Scene, step_kernel
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture, ellipsoid_poses_into,
                                   motions_between, pairs_may_touch, poses_then_may_touch, sweep_sphere)
@@ -30,6 +30,11 @@ class StepContact:
         point: (3,) world contact point, None when the pair was not separate at the step start.
         normal: (3,) unit world normal pointing out of ``bodies[0]``, None likewise.
         status_at_start: "separate", "touching" or "overlapping" at the step start.
+        certainty: "certified", or "uncertain" when the exact solver hit one of its limits on
+            this pair: then the contact is only possible, somewhere in ``bracket``, and ``time``
+            and ``fraction`` are the start of that bracket (never read it as "no contact").
+        bracket: (lo, hi) simulation times in seconds holding every possible first contact
+            when uncertain (lo == hi when the first contact itself is known); None when certified.
     """
 
     time: float
@@ -40,16 +45,23 @@ class StepContact:
     point: object
     normal: object
     status_at_start: str
+    certainty: str = "certified"
+    bracket: tuple = None
 
 
 @dataclass(frozen=True, eq=False)
 class StepReport:
-    """Everything one check found: the first contact (or None), all colliding pairs when asked, counts."""
+    """Everything one check found: the first contact (or None), all colliding pairs when asked, counts.
+
+    ``pairs_uncertain`` counts the pairs on which the exact solver hit a limit (see
+    :attr:`StepContact.certainty`), including those whose bracket starts after the first contact.
+    """
 
     first: object
     contacts: tuple
     pairs_checked: int
     pairs_solved: int
+    pairs_uncertain: int = 0
 
 
 def _pair_key(a, b):
@@ -118,7 +130,7 @@ def default_pairs(model, ellipsoids, *, drop_overlapping_at_qpos0=True):
         state = State(model.qpos0.copy(), model.body_pos[model.body_mocapid >= 0].copy(),
                       model.body_quat[model.body_mocapid >= 0].copy())
         poses = kin.ellipsoid_poses(state, ids, ellipsoids.positions, ellipsoids.quaternions)
-        keep = [static_status_pose(ellipsoids.radii[i], poses[i, :3], poses[i, 3:],
+        keep = [static_status_code(ellipsoids.radii[i], poses[i, :3], poses[i, 3:],
                                    ellipsoids.radii[j], poses[j, :3], poses[j, 3:]) == 1 for i, j in pairs]
         pairs = pairs[np.asarray(keep, dtype=bool)]
     return pairs
@@ -214,7 +226,8 @@ class CCDMonitor:
         if len(reports) > 1:
             self.last_report = StepReport(first, tuple(c for r in reports for c in r.contacts),
                                           sum(r.pairs_checked for r in reports),
-                                          sum(r.pairs_solved for r in reports))
+                                          sum(r.pairs_solved for r in reports),
+                                          sum(r.pairs_uncertain for r in reports))
         return first
 
     def check(self, state_t0, state_t1):
@@ -257,20 +270,29 @@ class CCDMonitor:
             return t0 + fraction * (t1 - t0)
         return (t0 if t0 is not None else 0.0) + fraction * self.model.opt.timestep
 
-    def _contact(self, t0, t1, i, j, fraction, point, normal, poses0):
-        """The :class:`StepContact` of ellipsoids i, j at ``fraction`` of a step from time ``t0`` to ``t1``."""
-        if point is None:
-            r = self.ellipsoids.radii
-            status = STATUS[int(static_status_pose(r[i], poses0[i, :3], poses0[i, 3:],
-                                                   r[j], poses0[j, :3], poses0[j, 3:]))]
-            status = "touching" if status == "separate" else status
-        else:
-            status = "separate"
+    def _contact(self, t0, t1, i, j, fraction, point, normal, poses0, bracket=None, status=None):
+        """The :class:`StepContact` of ellipsoids i, j at ``fraction`` of a step from time ``t0`` to ``t1``.
+
+        ``bracket``: (lo, hi) step fractions of an uncertain answer (None: certified).  ``status``: the
+        status at the step start when the caller knows it; else separate when there is a point or an
+        uncertain contact after the start, and the static status of the start poses otherwise.
+        """
+        if status is None:
+            if point is None and (bracket is None or bracket[1] == 0.0):
+                r = self.ellipsoids.radii
+                status = STATUS[static_status_code(r[i], poses0[i, :3], poses0[i, 3:],
+                                                   r[j], poses0[j, :3], poses0[j, 3:])]
+                status = "touching" if status == "separate" else status
+            else:
+                status = "separate"
         a, b = int(self.body_ids[i]), int(self.body_ids[j])
+        seconds = None if bracket is None else (float(self._seconds(t0, t1, bracket[0])),
+                                                float(self._seconds(t0, t1, bracket[1])))
         return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
                            (self.labels[a], self.labels[b]), (a, b), (int(i), int(j)),
                            None if point is None else np.array(point, float),
-                           None if normal is None else np.array(normal, float), status)
+                           None if normal is None else np.array(normal, float), status,
+                           "certified" if bracket is None else "uncertain", seconds)
 
     def _check_scene(self, s0, s1):
         """Rigid and affine motions: the batched :class:`mjccd.scene.Scene` pipeline."""
@@ -282,11 +304,12 @@ class CCDMonitor:
 
         def convert(pc):
             i, j = self.pairs[pc.pair]
-            return self._contact(s0.time, s1.time, i, j, pc.time, pc.point, pc.normal, p0)
+            return self._contact(s0.time, s1.time, i, j, pc.time, pc.point, pc.normal, p0, pc.bracket)
 
         first = None if frame.first is None else convert(frame.first)
         contacts = tuple(sorted((convert(c) for c in frame.contacts), key=lambda c: c.fraction))
-        return StepReport(first, contacts, frame.counters.pairs, frame.counters.solved_exactly)
+        return StepReport(first, contacts, frame.counters.pairs, frame.counters.solved_exactly,
+                          frame.counters.uncertain)
 
     def _check_chain(self, s0, s1):
         """Chain motions: swept-ball prefilter, then the exact solver pair by pair."""
@@ -298,7 +321,7 @@ class CCDMonitor:
         rmax = radii.max(axis=1)
         balls = [sweep_sphere(m) if not isinstance(m, Static) else (m.position, 0.0) for m in motions]
         shapes = [Ellipsoid(r) for r in radii]
-        t_max, first, contacts, solved = 1.0, None, [], 0
+        t_max, first, contacts, solved, uncertain = 1.0, None, [], 0, 0
         for i, j in self.pairs:
             bi, bj = balls[i], balls[j]
             if bi is not None and bj is not None:
@@ -308,14 +331,19 @@ class CCDMonitor:
             solved += 1
             hit = first_contact(shapes[i], motions[i], shapes[j], motions[j],
                                 t_max=1.0 if self.all_pairs else t_max)
+            if hit is not None and hit.certainty != "certified":
+                uncertain += 1
             if hit is None or (hit.status_at_start != "separate" and not self.report_overlapping):
                 continue
-            c = self._contact(s0.time, s1.time, i, j, hit.time, hit.point, hit.normal, p0)
+            bracket = None if hit.certainty == "certified" else hit.bracket
+            # an uncertain answer keeps the solver's status (the start poses alone may not settle it)
+            c = self._contact(s0.time, s1.time, i, j, hit.time, hit.point, hit.normal, p0, bracket,
+                              None if bracket is None else hit.status_at_start)
             contacts.append(c)
             if first is None or c.fraction < first.fraction:
                 first, t_max = c, c.fraction
         contacts.sort(key=lambda c: c.fraction)
-        return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved)
+        return StepReport(first, tuple(contacts) if self.all_pairs else (), len(self.pairs), solved, uncertain)
 
 
 class StepCheck:
@@ -438,30 +466,34 @@ class StepCheck:
         """
         mon = self.monitor
         p0, p1 = self.poses
-        k, time, point, normal = self._first_new(mon._scene, p0, p1)
+        k, time, point, normal, bracket = self._first_new(mon._scene, p0, p1)
         if k < 0:
             return None
         i, j = self._pair_list[k]
         t0, t1 = (None, None) if times is None else times
-        return mon._contact(t0, t1, i, j, time, point, normal, p0)
+        return mon._contact(t0, t1, i, j, time, point, normal, p0, bracket)
 
     @staticmethod
     def _first_new(scene, p0, p1):
-        """:meth:`Scene.step` ``(p0, p1, new_contacts_only=True)``'s first contact as (pair, time, point, normal).
+        """:meth:`Scene.step` ``(p0, p1, new_contacts_only=True)``'s first contact as (pair, time, point, normal,
+        bracket).
 
         The same compiled kernel on the same buffers and plane cache, without the result objects
-        (pair -1 when there is none; point and normal are views of the scene's buffers).
+        (pair -1 when there is none; point and normal are views of the scene's buffers; bracket
+        (lo, hi) when the answer is uncertain, else None).
         """
-        q0_p, q0, q1_p, q1, outcome, entry, times, points, normals, ticks, counters, iv, owner, ws = \
+        q0_p, q0, q1_p, q1, outcome, entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws = \
             scene._buffers
         scene._poses(p0, "poses_t0", q0_p, q0)
         scene._poses(p1, "poses_t1", q1_p, q1)
         k, _, _, _ = step_kernel(scene.motion == "affine", scene.radii, q0_p, q0, q1_p, q1, scene.pairs,
                                  scene.min_motion, scene.plane_cache, scene._cache_n, scene._cache_kind, False, True, False, outcome,
-                                 entry, times, points, normals, ticks, counters, iv, owner, ws)
+                                 entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws)
         if k < 0:
-            return -1, None, None, None
+            return -1, None, None, None, None
         t = float(times[k])
-        if t == 0.0 and not normals[k].any():  # as Scene: no point or normal for a pair not separate at t = 0
-            return int(k), t, None, None
-        return int(k), t, points[k], normals[k]
+        uncertain = outcome[k] == UNCERTAIN
+        bracket = (t, float(times_hi[k])) if uncertain else None
+        if (t == 0.0 or uncertain) and not normals[k].any():  # as Scene: no point or normal without a touch
+            return int(k), t, None, None, bracket
+        return int(k), t, points[k], normals[k], bracket

@@ -342,6 +342,7 @@ def test_dm_control_wrapper_reports_a_thrown_ball():
     assert abs(hit - t_star) <= 1e-9 * m.opt.timestep
     np.testing.assert_allclose(ts.observation["ccd/contact_normal"], [1, 0, 0], atol=1e-7)
     assert tuple(ts.observation["ccd/contact_pair"]) == (1, 2)
+    assert [(c.certainty, c.bracket) for c in env.last_contacts[:1]] == [("certified", None)]
 
 
 def test_gymnasium_wrapper_if_installed():
@@ -390,3 +391,105 @@ def test_testing_helpers_pass_and_fail_readably():
         assert_intervals(m, qpos, ("left", "right"), [(0.07, 0.12)])
     with pytest.raises(ValueError, match=r"trajectory: expected qpos of shape \(T >= 2, nq = 14\)"):
         assert_no_contact(m, qpos[:, :3])
+
+
+# ---------------------------------------------------------------- uncertain answers of the exact solver
+#
+# A real limit of the solver is hard to hit on purpose, so the solver is replaced: for chain motions the
+# first_contact the monitor calls, for rigid ones the exact_pair of the scene kernel, whose own Python source
+# (step_kernel.py_func, the lines the compiled kernel runs) is then run.
+
+
+def _widened(real):
+    """first_contact as if the solver hit a limit around every new contact: bracket t -/+ 1/4 of the step."""
+    from mjccd.ccd import Contact
+
+    def fake(a, motion_a, b, motion_b, *, t_max=1.0):
+        c = real(a, motion_a, b, motion_b, t_max=t_max)
+        if c is None or c.status_at_start != "separate":
+            return c
+        lo, hi = max(0.0, c.time - 0.25), min(1.0, c.time + 0.25)
+        return Contact(lo, None, None, c.status_at_start, "uncertain", (lo, hi))
+    return fake
+
+
+@pytest.fixture
+def limited_scene(monkeypatch):
+    """Scene kernels run as Python with an exact solver that hits a limit on every pair: bracket [0.3, 0.8]."""
+    import mjccd.mujoco.monitor as mon
+    import mjccd.scene as sc
+
+    def limit(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+        return 1, np.empty((0, 2)), np.zeros(3), np.zeros(3), False, 0.3, 0.8
+    monkeypatch.setattr(sc, "_borrow", lambda a: a)
+    monkeypatch.setattr(sc, "exact_pair", limit)
+    kernel = sc.step_kernel.py_func
+    monkeypatch.setattr(sc, "step_kernel", kernel)
+    monkeypatch.setattr(mon, "step_kernel", kernel)
+
+
+def test_monitor_certified_contacts_say_so():
+    m, d = _throw(0.0011)
+    monitor = CCDMonitor(m, d, fit_model(m))
+    c = monitor.step()
+    assert (c.certainty, c.bracket, c.status_at_start) == ("certified", None, "separate")
+    assert c.fraction == pytest.approx(0.55, abs=1e-9) and monitor.last_report.pairs_uncertain == 0
+
+
+def test_monitor_reports_uncertain_scene_answers(limited_scene):
+    from mjccd.mujoco.monitor import StepCheck
+
+    m, d = _throw(0.0011)  # contact at 0.55 of the first step; the stand-in solver says "somewhere in [0.3, 0.8]"
+    monitor = CCDMonitor(m, d, fit_model(m))
+    c = monitor.step()
+    assert (c.certainty, c.point, c.normal, c.status_at_start) == ("uncertain", None, None, "separate")
+    assert c.fraction == 0.3 and c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-15)
+    assert c.time == c.bracket[0]
+    assert monitor.last_report.pairs_uncertain == 1 and monitor.last_report.first is c
+    # the guard's lean step check reads the same kernel arrays
+    m, d = _throw(0.0011)
+    check = StepCheck(CCDMonitor(m, d, fit_model(m)))
+    check.begin(d)
+    mujoco.mj_step(m, d)
+    check.end_may_touch(d)
+    c = check.first((0.0, float(d.time)))
+    assert (c.certainty, c.point, c.fraction) == ("uncertain", None, 0.3)
+    assert c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-15)
+
+
+def test_chain_monitor_reports_uncertain_answers(monkeypatch):
+    import mjccd.mujoco.monitor as mon
+
+    monkeypatch.setattr(mon, "first_contact", _widened(mon.first_contact))
+    m, d = _throw(0.0011)
+    seen = []
+    monitor = CCDMonitor(m, d, fit_model(m), motion="chain", on_contact=seen.append)
+    c = monitor.step()
+    assert (c.certainty, c.point, c.status_at_start) == ("uncertain", None, "separate")
+    assert c.fraction == pytest.approx(0.3, abs=1e-9)
+    assert c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-12) and c.time == c.bracket[0]
+    assert monitor.last_report.pairs_uncertain == 1 and seen == [c]
+
+
+def test_testing_helpers_with_uncertain_answers(monkeypatch):
+    """An uncertain answer passes assert_first_contact only when the expected time is in its bracket, and never
+    passes assert_no_contact; both messages name the bracket."""
+    import mjccd.mujoco.monitor as mon
+    from mjccd.testing import assert_first_contact, assert_no_contact
+
+    monkeypatch.setattr(mon, "first_contact", _widened(mon.first_contact))
+    m, qpos = _balls()
+    rows = qpos[::3]  # steps of 6 ms: the contact at 0.07 s lies at 2/3 of the step [0.066, 0.072]
+    times = np.arange(len(rows)) * 0.006
+    kw = dict(motion="chain", times=times)
+    c = assert_first_contact(m, rows, ("left", "right"), 0.07, tol=1e-9, **kw)
+    assert c.certainty == "uncertain" and c.bracket == pytest.approx((0.0685, 0.0715), abs=1e-12)
+    assert_first_contact(m, rows, ("left", "right"), 0.0686, tol=1e-9, **kw)  # anywhere in the bracket
+    with pytest.raises(AssertionError, match=r"expected t = 0.068 s \(tol 1e-06\), found uncertain: a contact is "
+                                             r"possible in \[0.0685, 0.0715\] s \('left'-'right'.*outside that bracket"):
+        assert_first_contact(m, rows, ("left", "right"), 0.068, **kw)
+    with pytest.raises(AssertionError, match=r"expected no contact, could not certify it: uncertain answers in 1 "
+                                             r"step\(s\):\n  uncertain: a contact is possible in \[0.0685, 0.0715\] s"):
+        assert_no_contact(m, rows[:13], motion="chain", times=times[:13])
+    with pytest.raises(AssertionError, match=r"expected no contact, found contacts in \d+ step\(s\) \(1 uncertain\)"):
+        assert_no_contact(m, rows, **kw)

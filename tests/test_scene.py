@@ -248,3 +248,150 @@ def test_bad_input():
         scene.step(good, bad)
     with pytest.raises(ValueError, match=r"poses\[1\]\[2\]: zero quaternion"):
         scene.run(np.stack([good, bad]))
+
+
+# ---------------------------------------------------------------- uncertain answers of the exact solver
+#
+# A real limit of the solver (MAX_SHOOTS, the exit pool) is baked into the compiled kernel and is hard to hit on
+# purpose, so these tests run the scene kernel's own Python source (``step_kernel.py_func``: the same lines the
+# compiled kernel runs) with a stand-in exact solver that answers "uncertain" for chosen pairs.
+
+
+def _exact_stand_in(answers):
+    """An exact_pair that returns ``answers[x]`` for the pair whose first body starts at x = ``pa0[0]``
+    (the real solver for the others)."""
+    from mjccd.ccd import exact_pair
+
+    def stand_in(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+        answer = answers.get(float(pa0[0]))
+        if answer is None:
+            return exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
+        return answer(t_max, first_only)
+    return stand_in
+
+
+def _limit(lo, hi, status0=1, intervals=(), touch=False):
+    """An answer of a solver that hit a limit: bracket [lo, hi], the intervals found before it."""
+    def answer(t_max, first_only):
+        iv = np.array(intervals, float).reshape(-1, 2)
+        point = np.array([0.5, 0.0, 0.0]) if touch else np.zeros(3)
+        normal = np.array([1.0, 0.0, 0.0]) if touch else np.zeros(3)
+        return status0, iv, point, normal, False, lo, hi
+    return answer
+
+
+@pytest.fixture
+def python_kernel(monkeypatch):
+    """Scene kernels run as Python; returns a setter for the stand-in solver's answers (see _exact_stand_in)."""
+    import mjccd.scene as sc
+
+    monkeypatch.setattr(sc, "_borrow", lambda a: a)
+    monkeypatch.setattr(sc, "step_kernel", sc.step_kernel.py_func)
+    monkeypatch.setattr(sc, "run_kernel", sc.run_kernel.py_func)
+
+    def answers(table):
+        monkeypatch.setattr(sc, "exact_pair", _exact_stand_in(table))
+    answers({})
+    return answers
+
+
+def test_python_kernel_equals_the_compiled_one(python_kernel):
+    """The harness of the uncertain tests: without a stand-in answer the Python kernel gives the compiled result."""
+    scene, p0, p1 = three_pairs()
+    compiled = three_pairs()[0].step(p0, p1, all_pairs=True)
+    python = scene.step(p0, p1, all_pairs=True)
+
+    def rows(res):
+        return [(c.pair, c.time, c.intervals, c.certainty, c.bracket, c.point is None) for c in res.contacts]
+    assert rows(python) == rows(compiled) and len(rows(compiled)) == 3
+    assert python.counters == compiled.counters and python.first.pair == compiled.first.pair
+    assert compiled.certainty == "certified" and compiled.counters.uncertain == 0
+    assert all(c.certainty == "certified" and c.bracket is None for c in compiled.contacts)
+
+
+def test_uncertain_first_contact_is_a_possible_contact_at_its_bracket(python_kernel):
+    """See three_pairs: pair 1 (which touches at 0.25) hits a limit, bracket [0.2, 0.3]: it is the first
+    contact at 0.2, uncertain, without point; counted as uncertain, not colliding; pair 2 is pruned by it."""
+    python_kernel({10.0: _limit(0.2, 0.3)})
+    scene, p0, p1 = three_pairs()
+    res = scene.step(p0, p1, new_contacts_only=True)
+    assert res.certainty == "uncertain"
+    first = res.first
+    assert (first.pair, first.time, first.certainty, first.bracket) == (1, 0.2, "uncertain", (0.2, 0.3))
+    assert first.point is None and first.normal is None
+    c = res.counters
+    # colliding: only the pair overlapping at the start (counted, not reported, with new_contacts_only)
+    assert (c.solved_exactly, c.uncertain, c.colliding, c.pruned, c.overlapping_t0) == (1, 1, 1, 1, 1)
+    # the overlap at the start comes first when it is reported: the uncertain pair is then pruned, not solved
+    res = scene.step(p0, p1)
+    assert res.first.pair == 0 and res.certainty == "certified" and res.counters.uncertain == 0
+
+
+def test_uncertain_pairs_with_all_pairs(python_kernel):
+    """all_pairs: pair 2 (touching at 6/7) hits a limit before its first contact, bracket [0.8, 0.95]; pair 1
+    finds its first contact at 0.25 but its later intervals hit a limit (bracket [0.25, 0.25]); pair 0 overlaps
+    from the start, its intervals cut short by a limit (bracket [0, 0])."""
+    python_kernel({20.0: _limit(0.8, 0.95),
+                   10.0: _limit(0.25, 0.25, intervals=[(0.25, 0.5)], touch=True),
+                   0.0: _limit(0.0, 0.0, status0=-1, intervals=[(0.0, 0.4)])})
+    scene, p0, p1 = three_pairs()
+    res = scene.step(p0, p1, all_pairs=True)
+    assert res.certainty == "uncertain"
+    by_pair = {c.pair: c for c in res.contacts}
+    assert sorted(by_pair) == [0, 1, 2]
+    assert (by_pair[2].time, by_pair[2].bracket, by_pair[2].point) == (0.8, (0.8, 0.95), None)
+    assert (by_pair[1].time, by_pair[1].bracket, by_pair[1].intervals) == (0.25, (0.25, 0.25), ((0.25, 0.5),))
+    assert np.allclose(by_pair[1].normal, [1, 0, 0])  # the first contact itself is known
+    assert (by_pair[0].time, by_pair[0].bracket, by_pair[0].point) == (0.0, (0.0, 0.0), None)
+    assert all(c.certainty == "uncertain" for c in res.contacts)
+    assert res.first.pair == 0
+    c = res.counters
+    # colliding: pair 0 (overlapping) and pair 1 (first contact found); pair 2 only possibly
+    assert (c.overlapping_t0, c.solved_exactly, c.colliding, c.uncertain) == (1, 2, 2, 3)
+
+
+def test_uncertain_pair_after_the_first_contact_leaves_it_certified(python_kernel):
+    """Pair 1 (sphere entry 0.25) is solved first and left uncertain from 0.5 on; pair 2, moved to touch at
+    0.4, is solved next under that bound and hits at 0.4: the first contact is certified, the uncertain pair
+    only counted."""
+    python_kernel({10.0: _limit(0.5, 0.9)})
+    scene, p0, p1 = three_pairs()
+    p0, p1 = p0.copy(), p1.copy()
+    p0[4, 0] = p1[4, 0] = 21.8  # pair 2: a gap of 1.2 closed at 3 per frame
+    p1[5, 0] = 21.0
+    res = scene.step(p0, p1, new_contacts_only=True)
+    assert res.first.pair == 2 and res.first.time == pytest.approx(0.4, abs=1e-12)
+    assert res.first.certainty == "certified" and res.certainty == "certified"
+    assert res.counters.uncertain == 1 and res.counters.solved_exactly == 2
+
+
+def test_run_flags_uncertain_frames(python_kernel):
+    python_kernel({10.0: _limit(0.2, 0.3)})
+    scene, p0, p1 = three_pairs()
+    run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True)
+    assert run.uncertain.dtype == np.int8 and run.uncertain.tolist() == [1, 0]
+    assert run.time[0] == 0.2 and run.pair[0] == 1 and not run.point[0].any()
+    # colliding: only the pair overlapping at the start; the uncertain one is counted apart
+    assert run.counters.shape == (2, 9) and run.counters[0, 8] == 1 and run.counters[0, 6] == 1
+
+
+def test_frame_result_from_kernel_arrays():
+    """The pure conversion of the kernel's arrays: an UNCERTAIN outcome becomes an uncertain contact."""
+    from mjccd.scene import EXACT_HIT, UNCERTAIN, frame_result
+
+    pairs = np.array([[0, 1], [1, 2]])
+    outcome = np.array([EXACT_HIT, UNCERTAIN], np.int8)
+    times, times_hi = np.array([0.6, 0.1]), np.array([123.0, 0.4])
+    points, normals = np.array([[1.0, 2, 3], [0, 0, 0]]), np.array([[0.0, 0, 1], [0, 0, 0]])
+    counters = np.array([2, 0, 0, 0, 0, 2, 1, 0, 1])
+    res = frame_result(pairs, 1, outcome, times, times_hi, points, normals, counters,
+                       (np.array([[0.6, 0.7]]), np.array([0])))
+    assert res.certainty == "uncertain" and res.counters.uncertain == 1 and res.counters.colliding == 1
+    assert (res.first.pair, res.first.bodies, res.first.time) == (1, (1, 2), 0.1)
+    assert (res.first.certainty, res.first.bracket, res.first.point, res.first.normal) == \
+        ("uncertain", (0.1, 0.4), None, None)
+    hit = res.contacts[0]
+    assert (hit.certainty, hit.bracket, hit.intervals) == ("certified", None, ((0.6, 0.7),))
+    assert hit.point.tolist() == [1, 2, 3]
+    only = frame_result(pairs, 0, outcome, times, times_hi, points, normals, counters)
+    assert only.certainty == "certified" and only.contacts == ()

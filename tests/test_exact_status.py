@@ -1,0 +1,318 @@
+"""The exact static status (mjccd.exact) and the certified double-precision tests that defer to it."""
+import math
+from fractions import Fraction
+
+import mpmath
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd import _validate, exact
+from mjccd import quadric as Q
+
+ID = (1.0, 0.0, 0.0, 0.0)
+NAMES = {1: "separate", 0: "touching", -1: "overlapping"}
+
+
+def unit(q):
+    """q normalised as static_status and static_status_many normalise it (the doubles they decide on)."""
+    return _validate.pose_array(np.r_[np.zeros(3), q][None, :], "q")[0, 3:]
+
+
+def random_pairs(seed, n, thin=False):
+    """n pairs (ra, pa, qa, rb, pb, qb) of random shapes and poses; thin: 1000:1 disks and needles."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        if thin:
+            ra, rb = (rng.permutation([1.0, 1.0, 1e-3] if rng.random() < 0.5 else [1.0, 1e-3, 1e-3])
+                      for _ in range(2))
+        else:
+            ra, rb = rng.uniform(0.2, 1.0, 3), rng.uniform(0.2, 1.0, 3)
+        out.append((ra, rng.normal(size=3), rng.normal(size=4), rb, rng.normal(size=3), rng.normal(size=4)))
+    return out
+
+
+def exact_code(ra, pa, qa, rb, pb, qb):
+    """The exact status of the pair as the Python layer sees it (quaternions normalised)."""
+    qa, qb = unit(qa), unit(qb)
+    return exact.static_status_exact(exact.quadric_exact(ra, pa, qa), exact.quadric_exact(rb, pb, qb))
+
+
+def pose_code(ra, pa, qa, rb, pb, qb):
+    """The batched kernel's code for one pair (tuples in, as static_status_batch passes them)."""
+    qa, qb = unit(qa), unit(qb)
+    return int(Q.static_status_pose(tuple(map(float, ra)), tuple(map(float, pa)), tuple(map(float, qa)),
+                                    tuple(map(float, rb)), tuple(map(float, pb)), tuple(map(float, qb))))
+
+
+def all_paths(ra, pa, qa, rb, pb, qb):
+    """static_status, static_status_many, static_status_code: they must agree (returned as a name).
+
+    The first two normalise the quaternions; the third is given them normalised the same way."""
+    single = mjccd.static_status(mjccd.Ellipsoid(ra), (pa, qa), mjccd.Ellipsoid(rb), (pb, qb))
+    many = mjccd.static_status_many([ra], [np.r_[pa, qa]], [rb], [np.r_[pb, qb]])
+    code = Q.static_status_code(ra, pa, unit(qa), rb, pb, unit(qb))
+    assert single == NAMES[int(many[0])] == NAMES[code]
+    return single
+
+
+# ---------------------------------------------------------------- the exact test
+
+
+def mp_status(A, B):
+    """Status from max g on [0, 1] in 50-digit arithmetic (g's critical points by polyroots)."""
+    with mpmath.workdps(50):
+        A = mpmath.matrix([[mpmath.mpf(float(x)) for x in row] for row in A])
+        B = mpmath.matrix([[mpmath.mpf(float(x)) for x in row] for row in B])
+        ys = [mpmath.det((1 - u) * A + u * B) for u in range(5)]
+        # power coefficients through u = 0..4, then g' and its real roots in (0, 1)
+        V = mpmath.matrix([[mpmath.mpf(u) ** k for k in range(5)] for u in range(5)])
+        c = mpmath.lu_solve(V, mpmath.matrix(ys))
+        g = lambda u: sum(c[k] * u ** k for k in range(5))  # noqa: E731
+        crit = mpmath.polyroots([c[1], 2 * c[2], 3 * c[3], 4 * c[4]], maxsteps=200, extraprec=200, asc=True)
+        pts = [0, 1] + [mpmath.re(r) for r in crit if abs(mpmath.im(r)) < 1e-30 and 0 < mpmath.re(r) < 1]
+        gmax = max(g(u) for u in pts)
+        return 1 if gmax > 0 else -1
+
+
+def test_quadric_exact_matches_the_double_quadric():
+    for ra, pa, qa, *_ in random_pairs(1, 5):
+        E = np.array([[float(x) for x in row] for row in exact.quadric_exact(ra, pa, qa)])
+        assert np.allclose(E, Q.quadric_matrix(ra, pa, qa), rtol=1e-12, atol=1e-12)
+
+
+def test_quadric_from_w_exact_is_the_posed_quadric():
+    """A pose y = R x + p is W = [[R^T, -R^T p], [0, 1]]; a scaled W gives a positive multiple."""
+    q = (1.0, 2.0, -0.5, 0.25)
+    p = (0.5, -1.0, 2.0)
+    r = (1.0, 0.5, 0.25)
+    P = exact.quadric_exact(r, p, q)
+    w, x, y, z = map(Fraction, q)
+    n = w * w + x * x + y * y + z * z
+    R = [[(w * w + x * x - y * y - z * z) / n, 2 * (x * y - w * z) / n, 2 * (x * z + w * y) / n],
+         [2 * (x * y + w * z) / n, (w * w - x * x + y * y - z * z) / n, 2 * (y * z - w * x) / n],
+         [2 * (x * z - w * y) / n, 2 * (y * z + w * x) / n, (w * w - x * x - y * y + z * z) / n]]
+    G = [[3 * R[k][i] for k in range(3)] for i in range(3)]  # 3 W: c^2 = 9 times the quadric
+    h = [-sum(G[i][k] * Fraction(p[k]) for k in range(3)) for i in range(3)]
+    W = exact.quadric_from_w_exact(G, h, 3, r)
+    assert all(W[i][j] == 9 * P[i][j] for i in range(4) for j in range(4))
+
+
+def test_exact_status_agrees_with_mpmath():
+    seen = set()
+    for pair in random_pairs(2, 12) + random_pairs(3, 4, thin=True):
+        A = exact.quadric_exact(*pair[:3])
+        B = exact.quadric_exact(*pair[3:])
+        code = exact.static_status_exact(A, B)
+        assert code == mp_status(A, B)
+        seen.add(code)
+    assert seen == {1, -1}
+
+
+@pytest.mark.parametrize("d, expected", [(2.0, 0), (2.0 + 2.0 ** -40, 1), (2.0 - 2.0 ** -40, -1),
+                                         (3.0, 1), (1.0, -1)])
+def test_dyadic_spheres(d, expected):
+    """Unit spheres at distance d: touching exactly at 2 (every number here is dyadic)."""
+    r = (1.0, 1.0, 1.0)
+    assert exact_code(r, (0.0, 0.0, 0.0), ID, r, (d, 0.0, 0.0), ID) == expected
+    assert all_paths(np.array(r), np.zeros(3), np.array(ID), np.array(r), np.array([d, 0, 0]),
+                     np.array(ID)) == NAMES[expected]
+    if expected != 0:  # the kernels decide every pair that is not touching here
+        assert pose_code(r, (0, 0, 0), ID, r, (d, 0, 0), ID) == expected
+    else:
+        assert pose_code(r, (0, 0, 0), ID, r, (d, 0, 0), ID) == Q.UNDECIDED
+    # a rotated pair of spheres: still exact (rot(q) / |q|^2 is orthogonal for any q)
+    q = (1.0, 2.0, 3.0, 4.0)
+    pb = (0.0, d * 0.75, d)  # |pb| = 1.25 d: radii 1.25 make the same contact
+    r2 = (1.25, 1.25, 1.25)
+    assert exact_code(r2, (0.0, 0.0, 0.0), q, r2, pb, ID) == expected
+
+
+def test_touching_ellipsoids_rotated_exactly():
+    """(3, 1, 1) at the origin and (1, 2, 1) turned 90 degrees about z (q = (1, 0, 0, 1), not unit)."""
+    qz = (1.0, 0.0, 0.0, 1.0)
+    for x, expected in [(5.0, 0), (5.0 + 2.0 ** -45, 1), (5.0 - 2.0 ** -45, -1)]:
+        args = ((3.0, 1.0, 1.0), (0.0, 0.0, 0.0), ID, (1.0, 2.0, 1.0), (x, 0.0, 0.0), qz)
+        assert exact_code(*args) == expected
+        assert Q.static_status_code(*args) == expected
+        assert pose_code(*args) in (expected, Q.UNDECIDED)
+    A = exact.quadric_exact((3.0, 1.0, 1.0), (0, 0, 0), ID)
+    B = exact.quadric_exact((1.0, 2.0, 1.0), (4.0, 0, 0), ID)
+    assert exact.static_status_exact(A, B) == 0
+    assert exact.static_status_exact(A, [[float(x) for x in row] for row in B]) == 0  # dyadic: exact
+    # floats are taken exactly: 1/9 rounded down widens A past the contact
+    assert exact.static_status_exact([[float(x) for x in row] for row in A], B) == -1
+    with pytest.raises(ValueError, match="not two ellipsoids"):
+        exact.static_status_exact([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], B)
+
+
+# ---------------------------------------------------------------- thin shapes
+
+
+def thin_cases():
+    """Parallel 1000:1 disks and needles 20 % of their size apart, axis-aligned and turned together."""
+    disk, needle = (1.0, 1.0, 1e-3), (1.0, 1e-3, 1e-3)
+    cases = [(disk, (0.0, 0.0, 0.2)),  # stacked: 0.2 apart along the thin axis
+             (disk, (2.2, 0.0, 0.0)),  # side by side in their plane: gap 0.2
+             (disk, (1.5, 0.0, 0.2)),
+             (needle, (0.0, 0.2, 0.0)),  # side by side
+             (needle, (2.2, 0.0, 0.0)),  # end to end
+             (needle, (0.3, 0.1, 0.15))]
+    rng = np.random.default_rng(7)
+    out = []
+    for r, offset in cases:
+        for q in (np.array(ID), unit(rng.normal(size=4))):
+            R = Q.quat_to_matrix(q)
+            pa = rng.normal(size=3)
+            out.append((np.array(r), pa, q, np.array(r), pa + R @ np.array(offset), q))
+    return out
+
+
+def test_thin_parallel_shapes_are_separate_everywhere():
+    for pair in thin_cases():
+        assert all_paths(*pair) == "separate"
+        assert exact_code(*pair) == 1
+        assert pose_code(*pair) in (1, Q.UNDECIDED)
+    # axis-aligned, the double-precision kernel decides them itself
+    for pair in thin_cases()[::2]:
+        assert pose_code(*pair) == 1
+
+
+def test_paths_agree_on_thin_and_random_pairs_near_contact():
+    """Pairs scaled to just touch along random directions, then moved by tiny relative amounts."""
+    rng = np.random.default_rng(11)
+    undecided = decided = 0
+    rows = []
+    for k, (ra, pa, qa, rb, pb, qb) in enumerate(random_pairs(5, 6, thin=True) + random_pairs(6, 4)):
+        direction = (pb - pa) / np.linalg.norm(pb - pa)
+        lo, hi = 0.0, 4.0  # bisection on the kernel: -1 below the contact distance, 1 above
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            code = pose_code(ra, pa, qa, rb, pa + mid * direction, qb)
+            if code == Q.UNDECIDED:
+                break
+            lo, hi = (lo, mid) if code == 1 else (mid, hi)
+        for rel in (0.0, 1e-15, -1e-15, 1e-12, -1e-12, 1e-9, -1e-9, 1e-6, -1e-6):
+            pair = (ra, pa, qa, rb, pa + mid * (1.0 + rel) * direction, qb)
+            code = pose_code(*pair)
+            truth = exact_code(*pair)
+            if code == Q.UNDECIDED:
+                undecided += 1
+            else:
+                decided += 1
+                assert code == truth, (k, rel)
+            rows.append((pair, truth))
+    assert undecided > 0 and decided > 0
+    # static_status_many on all rows at once against the single-pair paths
+    ra = np.array([p[0] for p, _ in rows])
+    rb = np.array([p[3] for p, _ in rows])
+    pa = np.array([np.r_[p[1], p[2]] for p, _ in rows])
+    pb = np.array([np.r_[p[4], p[5]] for p, _ in rows])
+    many = mjccd.static_status_many(ra, pa, rb, pb)
+    assert [int(c) for c in many] == [t for _, t in rows]
+    for (pair, truth), c in list(zip(rows, many))[::7]:
+        assert mjccd.static_status(mjccd.Ellipsoid(pair[0]), (pair[1], pair[2]),
+                                   mjccd.Ellipsoid(pair[3]), (pair[4], pair[5])) == NAMES[truth]
+
+
+def test_matrix_kernel_is_certified():
+    """static_status_matrices on the (rounded) world matrices: right where it decides, for those matrices."""
+    for ra, pa, qa, rb, pb, qb in random_pairs(8, 6) + thin_cases()[:4]:
+        A, B = Q.quadric_matrix(ra, pa, qa), Q.quadric_matrix(rb, pb, qb)
+        code = int(Q.static_status_matrices(A, B))
+        if code != Q.UNDECIDED:
+            assert code == exact.static_status_exact(A, B)
+    # touching spheres: the kernel must not guess
+    A = Q.quadric_matrix(np.ones(3), np.zeros(3), np.array(ID))
+    for d, expected in [(2.0, Q.UNDECIDED), (2.0 + 2.0 ** -30, 1), (2.0 - 2.0 ** -30, -1)]:
+        B = Q.quadric_matrix(np.ones(3), np.array([d, 0.0, 0.0]), np.array(ID))
+        assert Q.static_status_matrices(A, B) == expected
+
+
+# ---------------------------------------------------------------- the rounding bounds, checked exactly
+
+
+def scaled_pair_exact(ra, pa, qa, rb, pb, qb):
+    """The pair as the pose kernels build it (A's frame scaled by |qa|^2, balanced by ka, kb), exactly."""
+    def rot(q):
+        w, x, y, z = map(Fraction, q)
+        return [[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]], w * w + x * x + y * y + z * z
+
+    RA, na = rot(qa)
+    RB, nb = rot(qb)
+    d = [Fraction(pa[i]) - Fraction(pb[i]) for i in range(3)]
+    Rp = [[sum(RB[l][k] * RA[l][i] for l in range(3)) for i in range(3)] for k in range(3)]
+    t = [sum(RB[l][k] * d[l] for l in range(3)) for k in range(3)]
+    c = [sum(RA[l][i] * d[l] for l in range(3)) for i in range(3)]
+    eb = [1 / Fraction(r) ** 2 for r in rb]
+    ea = [1 / Fraction(r) ** 2 for r in ra]
+    ka = Fraction(math.sqrt(float(ra[0]) * float(ra[1]) * float(ra[2])))
+    kb = Fraction(math.sqrt(float(rb[0]) * float(rb[1]) * float(rb[2])))
+    A = [[0] * 4 for _ in range(4)]
+    for i in range(3):
+        A[i][i] = ka * na * na * ea[i]
+    A[3][3] = -ka
+    B = [[0] * 4 for _ in range(4)]
+    for i in range(3):
+        for j in range(3):
+            B[i][j] = kb * sum(eb[k] * Rp[k][i] * Rp[k][j] for k in range(3))
+        B[i][3] = B[3][i] = kb * sum(eb[k] * Rp[k][i] * t[k] for k in range(3))
+    sb = sum(eb[k] * t[k] * t[k] for k in range(3)) - nb * nb
+    sa = sum(ea[i] * c[i] * c[i] for i in range(3)) - na * na
+    B[3][3] = kb * sb
+    return A, B, sb, sa
+
+
+def bound_cases():
+    rng = np.random.default_rng(12)
+    cases = random_pairs(9, 5) + random_pairs(10, 5, thin=True)
+    far = [(ra, pa + 1e3, qa, rb, pb + 1e3, qb) for ra, pa, qa, rb, pb, qb in random_pairs(13, 2)]
+    unnormalised = [(ra, pa, 3.0 * qa, rb, pb, 0.5 * qb) for ra, pa, qa, rb, pb, qb in random_pairs(14, 2)]
+    tiny = [(ra * 1e-3, pa * 1e-3, qa, rb * 1e-3, pb * 1e-3, qb) for ra, pa, qa, rb, pb, qb in random_pairs(15, 1)]
+    return cases + far + unnormalised + tiny + [thin_cases()[k] for k in rng.choice(12, 3, replace=False)]
+
+
+def exact_det(A, B, u, v):
+    return exact._det([[Fraction(v) * a + Fraction(u) * b for a, b in zip(ra, rb)] for ra, rb in zip(A, B)])
+
+
+def test_error_bounds_hold_exactly():
+    """Every value the kernels compare is within its bound of the exact value (quick and tracked paths)."""
+    for pair in bound_cases():
+        args = tuple(tuple(map(float, x)) for x in pair)
+        A, B, sb, sa = scaled_pair_exact(*args)
+        # the scaled pair has the status of the posed pair (a congruence and positive factors)
+        assert exact.static_status_exact(A, B) == exact_code(*args)
+        a, ea, b, eb, qsb, qesb, qsa, qesa = Q._quick_pair(*args)
+        tA, teA, tB, teB, tsb, tesb, tsa, tesa = Q._pose_pair(*args)
+        assert abs(Fraction(qsb) - sb) <= Fraction(qesb) and abs(Fraction(tsb) - sb) <= Fraction(tesb)
+        assert abs(Fraction(qsa) - sa) <= Fraction(qesa) and abs(Fraction(tsa) - sa) <= Fraction(tesa)
+        for i in range(4):
+            assert abs(Fraction(a[i]) - A[i][i]) <= Fraction(ea[i])
+        blocks = [(0, 0, 0), (0, 1, 0), (0, 2, 0), (0, 3, 1), (1, 1, 0), (1, 2, 0), (1, 3, 1), (2, 2, 0),
+                  (2, 3, 1), (3, 3, 2)]
+        for (i, j, blk), x in zip(blocks, b):
+            assert abs(Fraction(x) - B[i][j]) <= Fraction(eb[blk]), (i, j)
+        for k in range(16):
+            i, j = divmod(k, 4)
+            assert abs(Fraction(tA[k]) - A[i][j]) <= Fraction(teA[k])
+            assert abs(Fraction(tB[k]) - B[i][j]) <= Fraction(teB[k])
+        us = np.random.default_rng(len(str(args))).uniform(0, 1)
+        for u in (0.0, 0.25, 0.5, 0.75, 1.0, us):
+            v = 1.0 - u
+            truth = exact_det(A, B, u, v)
+            val, err = Q._quick_det(u, a, ea, b, eb)
+            assert abs(Fraction(val) - truth) <= Fraction(err)
+            val, err = Q._pencil_det_e(u, v, tA, teA, tB, teB)
+            assert abs(Fraction(val) - truth) <= Fraction(err)
+
+
+def test_undecided_code_is_documented_and_resolved():
+    assert Q.UNDECIDED == 2 and Q.UNDECIDED not in Q.STATUS_NAMES
+    r = np.ones(3)
+    codes = mjccd.static_status_many([r, r], [[0, 0, 0, 1, 0, 0, 0]] * 2, [r, r],
+                                     [[2, 0, 0, 1, 0, 0, 0], [0, 0, 2.5, 1, 0, 0, 0]])
+    assert codes.tolist() == [0, 1]

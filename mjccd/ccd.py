@@ -54,6 +54,7 @@ EXACT_PROBES = 64        # probes end * 2^-k (k = 64 .. 1) that look for the fir
 # surface point by more than 4e-15 of its distance from the centre, far below the rounding of the inputs.
 SAME_ORIENTATION = 8 * 2.220446049250313e-16
 EVAL_ROUNDING = 64 * EPS  # relative rounding of evaluating F's rows at a time and of a quartic's maximum
+DOUBLE, DOUBLE_TIGHT, RATIONAL = 0, 1, 2  # precision tiers: constant error bound, coefficient-wise bound, exact
 TIME_TOL = 1e-9           # an event is certified when its proven bracket is at most this wide
 
 
@@ -425,8 +426,10 @@ def state(F, t):
 
 @_jit
 def _quartic_at(g0, g1, g2, g3, g4, u):
+    """Value at u of the quartic with Bernstein coefficients g0..g4."""
     v = 1.0 - u
-    return v * v * v * v * g0 + 4.0 * u * v * v * v * g1 + 6.0 * u * u * v * v * g2 + 4.0 * u * u * u * v * g3 + u * u * u * u * g4
+    return (v * v * v * v * g0 + 4.0 * u * v * v * v * g1 + 6.0 * u * u * v * v * g2
+            + 4.0 * u * u * u * v * g3 + u * u * u * u * g4)
 
 
 @_jit
@@ -1284,7 +1287,7 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     zero = np.zeros(3)
     err[0] = pose_side_errors(ra, length, zero, zero, translating)
     err[1] = pose_side_errors(rb, length, (pb0 - pa0) / length, (pb1 - pa1) / length, False)
-    status0, intervals, bounds, u, reached = solve_balanced(Pp, Up, sp, err, t_max, first_only)
+    status0, intervals, bounds, u, reached, tier = solve_balanced(Pp, Up, sp, err, t_max, first_only)
     point = np.zeros(3)
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
@@ -1296,7 +1299,7 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
         for m in range(3):
             point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
             normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
-    return status0, intervals, bounds, point, normal, reached
+    return status0, intervals, bounds, point, normal, reached, tier
 
 
 @_jit
@@ -1305,6 +1308,7 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     coefficient-wise one when that leaves a bracket wider than TIME_TOL.  See :func:`solve_intervals`.
 
     ``err`` (2, 4, 4): bounds of each side's entry errors before balancing.
+    Returns :func:`solve_intervals`'s values and the precision tier used.
     """
     inv = np.empty(2)
     inv[0] = balance_side(Pp, Up, sp, 0)
@@ -1315,16 +1319,17 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     status0, intervals, bounds, u, reached = solve_intervals(F, E, t_max, first_only)
     certified, _, _ = verdict(intervals, bounds, reached, t_max)
     if certified:
-        return status0, intervals, bounds, u, reached
+        return status0, intervals, bounds, u, reached, DOUBLE
     E = error_bound_tight(F, Pp, Up, sp, D)
-    return solve_intervals(F, E, t_max, first_only)
+    status0, intervals, bounds, u, reached = solve_intervals(F, E, t_max, first_only)
+    return status0, intervals, bounds, u, reached, DOUBLE_TIGHT
 
 
 @_jit
 def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it:
     (status at start, intervals, point, normal, certified, bracket_lo, bracket_hi), see :func:`verdict`."""
-    status0, intervals, bounds, point, normal, reached = two_pose_pair(
+    status0, intervals, bounds, point, normal, reached, _ = two_pose_pair(
         affine, affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
     certified, lo, hi = verdict(intervals, bounds, reached, t_max)
     return status0, intervals, point, normal, certified, lo, hi
@@ -1414,6 +1419,7 @@ class PairSolution:
     bracket: tuple             # (lo, hi) holding every possible first contact; (-1, -1) for none
     bounds: np.ndarray = None  # (k, 4) proven brackets [in_lo, in_hi, out_lo, out_hi] of the intervals' ends
     reached: float = -1.0      # when a search limit stopped the solve: the time up to which it is complete
+    precision: int = 0         # DOUBLE, DOUBLE_TIGHT or RATIONAL: the most careful tier the answer needed
 
 
 def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
@@ -1429,10 +1435,13 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     certified, bracket = True, (-1.0, -1.0)
     all_bounds = []
     reached = -1.0
+    precision = DOUBLE
     for t0, t1 in zip(edges[:-1], edges[1:]):
         pencil, err, frame_origin = prepare_pair(*local_a.quadric_bounded_on(a.radii, t0, t1),
                                                  *local_b.quadric_bounded_on(b.radii, t0, t1), length)
-        code, piece, bounds, u, piece_reached = solve_balanced(*pencil, err, 1.0, first_only and not intervals)
+        code, piece, bounds, u, piece_reached, tier = solve_balanced(*pencil, err, 1.0,
+                                                                     first_only and not intervals)
+        precision = max(precision, int(tier))
         if status0 is None:
             status0 = int(code)
         width = t1 - t0
@@ -1462,7 +1471,7 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     all_bounds = np.array(all_bounds, float).reshape(-1, 4)
     certified, lo, hi = verdict(intervals, all_bounds, reached, t_max)
     return PairSolution(status0, intervals, point, normal, bool(certified), (float(lo), float(hi)), all_bounds,
-                        reached)
+                        reached, precision)
 
 
 class _ExactPair:
@@ -1536,7 +1545,7 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
         point, normal = pair.touch(float(intervals[0, 0]))
     lo, hi = (bounds[0, 0], bounds[0, 1]) if len(intervals) else solution.bracket
     return replace(solution, intervals=intervals, bounds=bounds, point=point, normal=normal, certified=certified,
-                   bracket=(float(lo), float(hi)))
+                   bracket=(float(lo), float(hi)), precision=RATIONAL)
 
 
 def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
@@ -1549,6 +1558,7 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
     """
     pair = _ExactPair(a, motion_a, b, motion_b)
     code = pair.status(Fraction(0))
+    solution = replace(solution, precision=RATIONAL)
     if code != 1:
         return replace(solution, status_at_start=code)
     end = Fraction(float(solution.intervals[0, 1])) if len(solution.intervals) else Fraction(0)
@@ -1584,12 +1594,12 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     if pose_a is None or pose_b is None:
         solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
     else:
-        status0, intervals, bounds, point, normal, reached = two_pose_pair(
+        status0, intervals, bounds, point, normal, reached, tier = two_pose_pair(
             pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
         certified, lo, hi = verdict(intervals, bounds, reached, t_max)
         touch = status0 == 1 and len(intervals) > 0
         solution = PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
-                                bool(certified), (float(lo), float(hi)), bounds, float(reached))
+                                bool(certified), (float(lo), float(hi)), bounds, float(reached), int(tier))
     if solution.status_at_start == 0:
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
     elif not solution.certified and solution.reached < 0.0:

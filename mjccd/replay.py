@@ -421,7 +421,7 @@ def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
             length = float(max(bounds.radii[i].max(), bounds.radii[j].max()))
             pencil, err, _ = prepare_pair(*qa, *qb, length)
             t1 = _time.perf_counter()
-            status0, intervals, _, _, _ = solve_balanced(*pencil, err, 1.0, False)
+            status0, intervals, _, _, _, _ = solve_balanced(*pencil, err, 1.0, False)
             t2 = _time.perf_counter()
             best_build, best_solve = min(best_build, t1 - t0), min(best_solve, t2 - t1)
         rows.append({"pair": [bounds.labels[i], bounds.labels[j]],

@@ -342,7 +342,11 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
                 counters[8] += 1
         else:
             counters[5] += 1
-            if intervals.shape[0] > 0 or not certified:  # an uncertain pair is a possible contact at lo
+            if new_only and status0 != 1:  # touching at t = 0 (the static test could not tell): not new
+                outcome[k] = OVERLAP_T0
+                counters[4] += 1
+                counters[6] += 1
+            elif intervals.shape[0] > 0 or not certified:  # an uncertain pair is a possible contact at lo
                 t = lo if intervals.shape[0] == 0 else (intervals[0, 0] if status0 == 1 else 0.0)
                 if intervals.shape[0] > 0:  # a first contact found: colliding (an honest count)
                     counters[6] += 1

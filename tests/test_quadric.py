@@ -17,10 +17,10 @@ def random_quat():
 @pytest.mark.parametrize("gap, expected", [(1e-6, "separate"), (0.3, "separate"), (0.0, "touching"),
                                            (-1e-8, "overlapping"), (-0.5, "overlapping")])
 def test_status_of_spheres(gap, expected):
-    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([0.5, 0.5, 0.5])
-    d = 1.5 + gap
-    direction = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
-    assert mjccd.static_status(a, ([0, 0, 0], random_quat()), b, (d * direction, random_quat())) == expected
+    """Spheres of radii 1 and 1/4 at distance 5/4 + gap; (3/4, 1, 0) has length 5/4 exactly in binary."""
+    a, b = mjccd.Ellipsoid([1, 1, 1]), mjccd.Ellipsoid([0.25, 0.25, 0.25])
+    position = np.array([0.75, 1.0, 0.0]) * (1.0 + gap / 1.25)
+    assert mjccd.static_status(a, ([0, 0, 0], random_quat()), b, (position, random_quat())) == expected
 
 
 def test_status_of_ellipsoids_along_axes():

@@ -316,3 +316,274 @@ def test_undecided_code_is_documented_and_resolved():
     codes = mjccd.static_status_many([r, r], [[0, 0, 0, 1, 0, 0, 0]] * 2, [r, r],
                                      [[2, 0, 0, 1, 0, 0, 0], [0, 0, 2.5, 1, 0, 0, 0]])
     assert codes.tolist() == [0, 1]
+
+
+# ---------------------------------------------------------------- the integer algorithm against the Fraction one
+
+
+def _ref_det(M):
+    if len(M) == 1:
+        return M[0][0]
+    return sum((-1) ** j * M[0][j] * _ref_det([row[:j] + row[j + 1:] for row in M[1:]])
+               for j in range(len(M)) if M[0][j] != 0)
+
+
+def _ref_trim(p):
+    while p and p[-1] == 0:
+        p = p[:-1]
+    return p
+
+
+def _ref_value(p, x):
+    acc = Fraction(0)
+    for c in reversed(p):
+        acc = acc * x + c
+    return acc
+
+
+def _ref_interpolate(ys):
+    n = len(ys)
+    dd = list(ys)
+    for level in range(1, n):
+        for k in range(n - 1, level - 1, -1):
+            dd[k] = (dd[k] - dd[k - 1]) / level
+    p = [Fraction(0)]
+    for k in range(n - 1, -1, -1):
+        p = [a - k * b for a, b in zip([Fraction(0)] + p, p + [Fraction(0)])]
+        p[0] += dd[k]
+    return _ref_trim(p)
+
+
+def _ref_derivative(p):
+    return _ref_trim([k * c for k, c in enumerate(p)][1:])
+
+
+def _ref_divmod(a, b):
+    a = list(a)
+    q = [Fraction(0)] * max(len(a) - len(b) + 1, 0)
+    while len(a) >= len(b) and a:
+        k = len(a) - len(b)
+        c = a[-1] / b[-1]
+        q[k] = c
+        for i, bc in enumerate(b):
+            a[i + k] -= c * bc
+        a = _ref_trim(a[:-1])
+    return q, a
+
+
+def _ref_gcd(a, b):
+    while b:
+        a, b = b, _ref_divmod(a, b)[1]
+    return [c / a[-1] for c in a]
+
+
+def _ref_sign_changes(seq, x):
+    signs = [s for s in (_ref_value(p, x) for p in seq) if s != 0]
+    return sum(1 for s, t in zip(signs, signs[1:]) if (s > 0) != (t > 0))
+
+
+def _ref_roots_between(q, lo, hi):
+    seq = [q, _ref_derivative(q)]
+    while seq[-1] and len(seq[-1]) > 1:
+        seq.append([-c for c in _ref_divmod(seq[-2], seq[-1])[1]])
+    seq = [p for p in seq if p]
+    out, todo = [], [(lo, hi)]
+    while todo:
+        a, b = todo.pop()
+        n = _ref_sign_changes(seq, a) - _ref_sign_changes(seq, b)
+        if n == 1:
+            out.append((a, b))
+        elif n > 1:
+            m = (a + b) / 2
+            while _ref_value(q, m) == 0:
+                m = (a + m) / 2
+            todo += [(m, b), (a, m)]
+    return sorted(out)
+
+
+def reference_status(A, B):
+    """The former static_status_exact (Fractions: g from five determinants, square-free part, Sturm).
+
+    Verbatim but for one fix: it took int entries as they are, and its divided differences then divided ints
+    into floats (inexact); here ints become Fractions."""
+    fr = lambda x: x if isinstance(x, Fraction) else Fraction(x) if isinstance(x, int) else Fraction(float(x))  # noqa: E731
+    A = [[fr(x) for x in row] for row in A]
+    B = [[fr(x) for x in row] for row in B]
+    ys = [_ref_det([[(1 - u) * a + u * b for a, b in zip(ra, rb)] for ra, rb in zip(A, B)]) for u in range(5)]
+    g = _ref_interpolate(ys)
+    if not g:
+        raise ValueError("degenerate pencil: det((1-u)A + uB) vanishes identically")
+    q = _ref_divmod(g, _ref_gcd(g, _ref_derivative(g)))[0] if len(g) > 1 else g
+    zero, one = Fraction(0), Fraction(1)
+    if not (ys[0] < 0 and ys[1] < 0):
+        raise ValueError("not two ellipsoids: det A and det B must be negative")
+    roots = _ref_roots_between(q, zero, one)
+    points = [zero, one] + [b for _, b in roots[:-1]]
+    if any(_ref_value(g, x) > 0 for x in points):
+        return 1
+    return 0 if roots else -1
+
+
+def _posed(ra, pa, qa, rb, pb, qb):
+    return exact.quadric_exact(ra, pa, qa), exact.quadric_exact(rb, pb, qb)
+
+
+def near_touching_pairs(seed, n):
+    """Pairs at their contact distance along a random direction (bisection on the exact status, 2^-40), moved
+    by small relative amounts: thin (1000:1) ones, far ones (1e6 from the origin), unnormalised quaternions."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        if k % 3 == 0:
+            ra = rng.permutation([1.0, 1.0, 1e-3]) if rng.random() < 0.5 else rng.permutation([1.0, 1e-3, 1e-3])
+            rb = rng.permutation([1.0, 1.0, 1e-3]) if rng.random() < 0.5 else rng.permutation([1.0, 1e-3, 1e-3])
+        else:
+            ra, rb = rng.uniform(0.2, 1.0, 3), rng.uniform(0.2, 1.0, 3)
+        qa, qb = rng.normal(size=4) * rng.uniform(0.1, 10.0), rng.normal(size=4) * rng.uniform(0.1, 10.0)
+        pa = rng.normal(size=3) + (1e6 if k % 4 == 1 else 0.0)
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        A = exact.quadric_exact(ra, pa, qa)
+        lo, hi = 0.0, 4.0
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            if exact.static_status_exact(A, exact.quadric_exact(rb, pa + mid * d, qb)) == 1:
+                hi = mid
+            else:
+                lo = mid
+        for dist in (lo, hi, hi * (1 + 1e-9), lo * (1 - 1e-9), hi * (1 + 1e-5), lo * (1 - 1e-5)):
+            out.append((A, exact.quadric_exact(rb, pa + dist * d, qb)))
+    return out
+
+
+def exactly_touching_pairs():
+    """Ellipsoids touching exactly at the tip of an axis (dyadic radii), the configuration turned by rational
+    rotations (integer quaternions) and moved far away, each with the contact moved 2^-40 either way."""
+    out = []
+    configs = [((1.0, 1.0, 1.0), (1.0, 1.0, 1.0)), ((3.0, 1.0, 1.0), (1.0, 2.0, 1.0)),
+               ((0.5, 0.25, 2.0), (0.75, 1.5, 0.125)), ((1.0, 1.0, 2.0 ** -10), (1.0, 2.0 ** -10, 2.0 ** -10))]
+    quats = [(1, 0, 0, 0), (1, 2, 3, 4), (3, -1, 0, 2)]
+    for (ra, rb) in configs:
+        for q in quats:
+            w, x, y, z = map(Fraction, q)
+            n = w * w + x * x + y * y + z * z
+            R = [[(w * w + x * x - y * y - z * z) / n, 2 * (x * y - w * z) / n, 2 * (x * z + w * y) / n],
+                 [2 * (x * y + w * z) / n, (w * w - x * x + y * y - z * z) / n, 2 * (y * z - w * x) / n],
+                 [2 * (x * z - w * y) / n, 2 * (y * z + w * x) / n, (w * w - x * x - y * y + z * z) / n]]
+            for origin in ((0, 0, 0), (2.0 ** 20, -(2.0 ** 20), 3.0 * 2 ** 19)):
+                pa = [Fraction(o) for o in origin]
+                for shift, expected in ((0, 0), (Fraction(1, 2 ** 40), 1), (-Fraction(1, 2 ** 40), -1)):
+                    local = Fraction(ra[0]) + Fraction(rb[0]) + shift
+                    pb = [pa[i] + R[i][0] * local for i in range(3)]
+                    out.append(((ra, pa, q, rb, pb, q), expected))
+    return out
+
+
+def _algebraic_cases():
+    """Matrix pencils (not ellipsoids, det < 0 at both ends) with chosen root structures of g."""
+    def block(p, q, r):  # det = -(p^2 + q^2) r^2
+        return [[p, q, 0, 0], [q, -p, 0, 0], [0, 0, r, 0], [0, 0, 0, r]]
+    return [
+        (block(1, 2, 3), block(-3, -6, -1), 0),  # g = -5 (1 - 4u)^2 (3 - 4u)^2: two double roots in (0, 1)
+        (block(1, 2, 3), block(-3, -6, 3), 0),  # r constant: one double root
+        (block(1, 2, 3), block(-3, -5, -1), 0),  # p, q roots apart: p^2 + q^2 > 0, r^2's double root at 3/4
+        (block(1, 2, 3), block(-3, -5, 5), -1),  # and r without root: g < 0
+        (block(1, 2, 3), block(-3, -6, 5), 0),  # the double root of p^2 + q^2 only, r's root outside (0, 1)
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -3]],  # g = -(1 - 4u)^3 (3 - 4u): triple + simple root
+         [[-3, 0, 0, 0], [0, -3, 0, 0], [0, 0, -3, 0], [0, 0, 0, 1]], 1),
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -1]],  # g = -(1 - 2u)^4: a quadruple root
+         [[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 1]], 0),
+        ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -1]],  # roots 1/2 (triple) and 1/4: separate
+         [[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0], [0, 0, 0, 3]], 1),
+        ([[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, -2]],  # g = -(2 - u)^4: no root in [0, 1]
+         [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -1]], -1),
+    ]
+
+
+def _status_pairs():
+    """(A, B) pairs: random, thin, near-touching and exactly touching."""
+    pairs = [_posed(*p) for p in random_pairs(21, 40) + random_pairs(22, 30, thin=True)]
+    far = [(ra, pa + 1e6, 7.0 * qa, rb, pb + 1e6, 0.01 * qb) for ra, pa, qa, rb, pb, qb in random_pairs(23, 20)]
+    pairs += [_posed(*p) for p in far]
+    pairs += near_touching_pairs(24, 24)
+    pairs += [_posed(*p) for p, _ in exactly_touching_pairs()]
+    return pairs
+
+
+def test_integer_status_matches_the_fraction_algorithm():
+    seen = {}
+    for A, B in _status_pairs():
+        code = exact.static_status_exact(A, B)
+        assert code == reference_status(A, B)
+        seen[code] = seen.get(code, 0) + 1
+    assert set(seen) == {-1, 0, 1} and min(seen.values()) >= 10, seen
+
+
+def test_exactly_touching_pairs_and_their_neighbours():
+    for pair, expected in exactly_touching_pairs():
+        assert exact.static_status_exact(*_posed(*pair)) == expected, pair
+
+
+@pytest.mark.parametrize("subdivisions", [exact.SUBDIVISIONS, 0, 3])
+def test_root_structures_and_the_sturm_path(monkeypatch, subdivisions):
+    """The Sturm fallback (no subdivision, or few) decides as the subdivision does, on every kind of pair."""
+    monkeypatch.setattr(exact, "SUBDIVISIONS", subdivisions)
+    for A, B, expected in _algebraic_cases():
+        assert reference_status(A, B) == expected
+        assert exact.static_status_exact(A, B) == expected, (A, B)
+        F = [[Fraction(x, 3) for x in row] for row in A]  # other positive factors and types: the same
+        assert exact.static_status_exact(F, [[float(7 * x) for x in row] for row in B]) == expected
+        assert exact.static_status_exact(np.array(A, float), np.array(B, np.int64)) == expected
+    pairs = _status_pairs()[::4]
+    for A, B in pairs:
+        assert exact.static_status_exact(A, B) == reference_status(A, B)
+
+
+def test_integer_form_is_the_pencil_determinant():
+    """The binary quartic's coefficients against g's values, and the integer scaling (content 1)."""
+    rng = np.random.default_rng(31)
+    for _ in range(5):
+        A = [[Fraction(int(rng.integers(-50, 50)), int(rng.integers(1, 30))) for _ in range(4)] for _ in range(4)]
+        B = [[Fraction(int(rng.integers(-50, 50)), int(rng.integers(1, 30))) for _ in range(4)] for _ in range(4)]
+        IA, IB = exact._integer_matrix(A), exact._integer_matrix(B)
+        assert math.gcd(*[x for row in IA for x in row]) == 1
+        ratio = {IA[i][j] / A[i][j] for i in range(4) for j in range(4) if A[i][j]}
+        assert len(ratio) == 1 and ratio.pop() > 0
+        c = exact._pencil_form(IA, IB)
+        for x, y in [(1, 0), (0, 1), (1, 1), (2, -3), (5, 7)]:
+            M = [[x * a + y * b for a, b in zip(ra, rb)] for ra, rb in zip(IA, IB)]
+            assert sum(c[j] * x ** (4 - j) * y ** j for j in range(5)) == exact._det(M)
+
+
+def test_errors_are_kept():
+    I4 = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    Z = [[0] * 4 for _ in range(4)]
+    S = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, -1]]
+    with pytest.raises(ValueError, match="degenerate pencil"):
+        exact.static_status_exact(Z, Z)
+    with pytest.raises(ValueError, match="not two ellipsoids"):
+        exact.static_status_exact(I4, S)
+    with pytest.raises(ValueError, match="not two ellipsoids"):
+        exact.static_status_exact(S, I4)
+
+
+def test_small_integer_pencils_with_repeated_roots(monkeypatch):
+    """Diagonal and 2x2-block integer pencils: g a product of small linear and quadratic factors, often with
+    double, triple and quadruple roots in (0, 1); subdivision and the Sturm path against the reference."""
+    rng = np.random.default_rng(41)
+    cases = []
+    while len(cases) < 300:
+        a, b = rng.integers(-3, 4, 4).tolist(), rng.integers(-3, 4, 4).tolist()
+        A = [[a[i] if i == j else 0 for j in range(4)] for i in range(4)]
+        B = [[b[i] if i == j else 0 for j in range(4)] for i in range(4)]
+        if rng.random() < 0.5:  # a block [[p, q], [q, -p]]: the factor -(p^2 + q^2)
+            A[0][1] = A[1][0] = int(rng.integers(-3, 4))
+            B[0][1] = B[1][0] = int(rng.integers(-3, 4))
+            A[1][1], B[1][1] = -A[0][0], -B[0][0]
+        if exact._det(A) < 0 and exact._det(B) < 0:
+            cases.append((A, B, reference_status(A, B)))
+    assert {e for *_, e in cases} == {-1, 0, 1}
+    for subdivisions in (exact.SUBDIVISIONS, 0):
+        monkeypatch.setattr(exact, "SUBDIVISIONS", subdivisions)
+        for A, B, expected in cases:
+            assert exact.static_status_exact(A, B) == expected, (A, B)

@@ -537,8 +537,12 @@ def _entry_estimate(F, E, t_c, lower, t_max):
     """(estimate, upper end of the bracket) of a contact where the shoots stopped at t_c: the estimate is
     the zero of the computed State inside [lower, upper] when it changes sign there, else t_c."""
     upper = _entry_upper(F, E, t_c, lower, t_max)
-    if upper > t_c and state(F, t_c)[0] > 0.0 and state(F, upper)[0] < 0.0:
-        return _bisect_sign(F, t_c, upper, False), upper
+    if upper > t_c and state(F, t_c)[0] > 0.0:
+        at_upper = state(F, upper)[0]
+        if at_upper < 0.0:
+            return _bisect_sign(F, t_c, upper, False), upper
+        if at_upper == 0.0:  # e.g. a touch exactly at t_max
+            return upper, upper
     return t_c, upper
 
 
@@ -1488,8 +1492,9 @@ class _ExactPair:
                                          self.local_b.exact_quadric_at(self.b.radii, t))
 
     def separation_change(self, lo, hi, separate_at_lo):
-        """A time within 2^-60 relative of where the exact status changes to or from separate in (lo, hi],
-        by bisection on dyadic times; None when the ends do not differ as expected."""
+        """Where the exact status changes to or from separate in (lo, hi], by bisection on dyadic times:
+        (the time as a float, the end of the final bracket that is not separate, as a Fraction), or None
+        when the exact status at lo and hi does not differ as expected."""
         lo, hi = Fraction(lo), Fraction(hi)
         if (self.status(lo) == 1) != separate_at_lo or (self.status(hi) == 1) == separate_at_lo:
             return None
@@ -1499,19 +1504,24 @@ class _ExactPair:
                 lo = mid
             else:
                 hi = mid
-        return float(hi)
+        return (float(hi), hi) if separate_at_lo else (float(lo), lo)
+
+    def first_not_separate(self, lo, hi, *estimates, samples=16):
+        """The earliest of the estimates and of ``samples`` even times in (lo, hi) at which the pair is not
+        separate (exactly), or None."""
+        times = sorted({float(t) for t in estimates if lo < t <= hi}
+                       | {lo + (hi - lo) * k / samples for k in range(1, samples + 1)})
+        for t in times:
+            if self.status(Fraction(t)) != 1:
+                return t
+        return None
 
     def touch(self, t):
-        """World touch point and normal of the pair at time t (double precision)."""
-        length = float(max(self.a.radii.max(), self.b.radii.max()))
-        pencil, _, frame_origin = prepare_pair(*self.local_a.quadric_bounded_on(self.a.radii, 0.0, 1.0),
-                                               *self.local_b.quadric_bounded_on(self.b.radii, 0.0, 1.0), length)
-        Pp, Up, sp = pencil
-        balance_side(Pp, Up, sp, 0)
-        balance_side(Pp, Up, sp, 1)
-        u = state(F_from_pencil(Pp, Up, sp), t)[1]
-        point, normal = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
-        return self.origin + frame_origin + length * point, normal
+        """World touch point and unit normal of the pair at time t, in rational arithmetic."""
+        tf = Fraction(t)
+        point, normal = exact.touching_point_exact(self.local_a.exact_quadric_at(self.a.radii, tf),
+                                                   self.local_b.exact_quadric_at(self.b.radii, tf))
+        return self.origin + np.array(point), np.array(normal)
 
 
 def _refine_exactly(a, motion_a, b, motion_b, solution):
@@ -1528,18 +1538,24 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
     bounds = solution.bounds.copy()
     certified = True
     for k in range(len(intervals)):
+        # a time the pair is not separate inside interval k: the entry's proven-overlap end, refined below
+        inside = Fraction(0) if k == 0 and solution.status_at_start != 1 else Fraction(float(bounds[k, 1]))
         for end, (lo, hi), separate_at_lo in ((0, bounds[k, 0:2], True), (1, bounds[k, 2:4], False)):
             if hi - lo <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
                 continue
-            t = pair.separation_change(lo, hi, separate_at_lo)
-            if t is None:  # a bracket end the exact status does not confirm: try the middle of the interval
-                middle = 0.5 * (intervals[k, 0] + intervals[k, 1])
-                t = pair.separation_change(*((lo, middle) if end == 0 else (middle, hi)), separate_at_lo)
-            if t is None:
+            found = pair.separation_change(lo, hi, separate_at_lo)
+            if found is None and end == 0:  # separate again at hi (a graze in the band): look for a contact inside
+                probe = pair.first_not_separate(lo, hi, intervals[k, 0], intervals[k, 1])
+                found = None if probe is None else pair.separation_change(lo, probe, True)
+            if found is None and end == 1:  # the exit's lower end is not inside: start from a time that is
+                found = pair.separation_change(inside, hi, False)
+            if found is None:
                 certified = False
                 continue
-            intervals[k, end] = t
-            bounds[k, 2 * end:2 * end + 2] = t
+            intervals[k, end], boundary = found
+            bounds[k, 2 * end:2 * end + 2] = intervals[k, end]
+            if end == 0:
+                inside = boundary
     point, normal = solution.point, solution.normal
     if len(intervals) and solution.status_at_start == 1 and intervals[0, 0] != solution.intervals[0, 0]:
         point, normal = pair.touch(float(intervals[0, 0]))
@@ -1570,10 +1586,11 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
             hi = probe
             break
         lo = probe
-    t = None if hi is None else pair.separation_change(lo or Fraction(0), hi, True)
-    if t is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
+    found = None if hi is None else pair.separation_change(lo or Fraction(0), hi, True)
+    if found is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
         return replace(solution, status_at_start=1, intervals=solution.intervals[1:], certified=False,
                        bracket=(0.0, float(end)), point=None, normal=None)
+    t = found[0]
     intervals = solution.intervals.copy()
     intervals[0, 0] = t
     if first_only:

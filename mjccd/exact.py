@@ -16,6 +16,8 @@ import math
 import numbers
 from fractions import Fraction
 
+import numpy as np
+
 SEPARATE, TOUCHING, OVERLAPPING = 1, 0, -1
 
 
@@ -286,31 +288,43 @@ def touching_point_exact(A, B):
     At a touch the quartic ``g(s) = det((1 - s) A + s B)`` has a double root s* in
     (0, 1), where it is largest; the matrix there is singular and its null vector
     is the point.  s* comes from Newton's method on g' in rationals kept to 160
-    bits, started from the best of 64 samples; the null vector from the
-    cofactors of the row with the largest diagonal cofactor.  Returns floats.
+    bits, started from the critical point (a root of the cubic g', found in
+    double precision) where g is largest; the null vector from the cofactors
+    of the row with the largest diagonal cofactor.  Returns floats.
     """
     A, B = _integer_matrix(A), _integer_matrix(B)
+    # balance the two (a positive factor on either only moves s*): |det A| and |det B| within a factor 16
+    shift = (abs(_det(A)).bit_length() - abs(_det(B)).bit_length()) // 4
+    if shift > 0:
+        B = [[x << shift for x in row] for row in B]
+    elif shift < 0:
+        A = [[x << -shift for x in row] for row in A]
     c = _pencil_form(A, B)
 
-    def g(s):
-        x = 1 - s
-        return sum(c[j] * x ** (4 - j) * s ** j for j in range(5))
+    # g in powers of s: (1 - s)^(4-j) s^j expanded; then g' a cubic with integer coefficients
+    power = [0] * 5
+    for j in range(5):
+        for k in range(5 - j):
+            power[j + k] += c[j] * math.comb(4 - j, k) * (-1) ** k
+    slope = [k * power[k] for k in range(1, 5)]  # g'(s) = sum slope[k] s^k
 
-    def dg(s):  # d/ds of c_j x^(4-j) s^j (x = 1 - s) is c_j (j x^(4-j) s^(j-1) - (4-j) x^(3-j) s^j)
-        x = 1 - s
-        return sum(c[j] * ((j * x ** (4 - j) * s ** (j - 1) if j else 0)
-                           - ((4 - j) * x ** (3 - j) * s ** j if j < 4 else 0)) for j in range(5))
+    def value(p, s):
+        acc = Fraction(0)
+        for coefficient in reversed(p):
+            acc = acc * s + coefficient
+        return acc
 
-    def ddg(s, h=Fraction(1, 1 << 80)):  # g'' by a central difference of the exact g' (an exact cubic: step 2^-80)
-        return (dg(s + h) - dg(s - h)) / (2 * h)
-
-    s = max((Fraction(k, 64) for k in range(1, 64)), key=g)
-    for _ in range(60):
-        curvature = ddg(s)
+    scale = max(abs(x) for x in slope) or 1
+    candidates = [r.real for r in np.roots([x / scale for x in reversed(slope)])
+                  if abs(r.imag) <= 1e-9 and 0.0 < r.real < 1.0]
+    s = max((_rounded(Fraction(r)) for r in candidates), key=lambda x: value(power, x), default=Fraction(1, 2))
+    curvature_poly = [k * slope[k] for k in range(1, 4)]
+    for _ in range(60):  # Newton on g' in rationals, from the best critical point double precision found
+        curvature = value(curvature_poly, s)
         if curvature == 0:
             break
-        step = dg(s) / curvature
-        s = _rounded(min(max(s - step, Fraction(1, 1 << 60)), 1 - Fraction(1, 1 << 60)))
+        step = value(slope, s) / curvature
+        s = _rounded(s - step)
         if abs(step) < Fraction(1, 1 << 140):
             break
     M = [[(1 - s) * a + s * b for a, b in zip(ra, rb)] for ra, rb in zip(A, B)]

@@ -506,7 +506,7 @@ def shoot_first_contact(F, E, t_start, t_max):
 def _entry_upper(F, E, t_c, lower, t_max):
     """The upper end of the bracket of a contact estimated at t_c (proven separate before ``lower``).
 
-    The first probe t_c + w 2^k (w = t_c - lower) that is proven overlapping:
+    The first probe t_c + w 2^k (w from State's slope at t_c) that is proven overlapping:
     the contact lies in [lower, probe]; or the first proven separate again
     after probes inside the rounding band: the pair stayed inside the band in
     between (a touch, or a miss by less than the rounding), and [lower, probe]
@@ -514,10 +514,13 @@ def _entry_upper(F, E, t_c, lower, t_max):
     edge, so the first probes may still be separate.
     t_max when no probe is decided (touching to the end).
     """
-    w = max(t_c - lower, 1e-16)
+    emax = E.max()
+    gmax, u = state(F, t_c)
+    _, slope = bz.value_and_slope(bz.bivariate_at_u(F, u), t_c)
+    # first probe: where State, going down at this slope, would be 2 emax below zero
+    w = max(t_c - lower, (gmax + 2.0 * emax) / -slope if slope < 0.0 else 0.0, 1e-16)
     t = t_c
     lowest = np.inf
-    emax = E.max()
     while t < t_max:
         t = min(t_c + w, t_max)
         code, gmax, _ = status_at(F, E, t)
@@ -1060,10 +1063,11 @@ def solve_intervals(F, E, t_max, first_only):
         t_in = lower = 0.0
         in_hi = 0.0 if status0 == -1 else _entry_upper(F, E, 0.0, 0.0, t_max)
     for _ in range(MAX_INTERVALS):
-        if first_only:
+        if first_only:  # no end of the interval is looked for: its bracket is the estimate itself
             out[0, 0] = out[0, 1] = t_in
-            bounds[0, 0] = bounds[0, 2] = lower
-            bounds[0, 1] = bounds[0, 3] = in_hi
+            bounds[0, 0] = lower
+            bounds[0, 1] = in_hi
+            bounds[0, 2] = bounds[0, 3] = t_in
             return status0, out[:1], bounds[:1], u_first, -1.0
         t_out, out_lo, out_hi, t_sep, limited = _leave_contact(F, E, t_in, t_max)
         if k > 0 and t_in - out[k - 1, 1] <= 1e-12:  # touching the previous one: merge

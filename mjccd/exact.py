@@ -337,6 +337,8 @@ def touching_point_exact(A, B):
     X = [cofactor(r, j) for j in range(4)]
     point = [float(X[i] / X[3]) for i in range(3)]
     p = [X[i] / X[3] for i in range(3)] + [Fraction(1)]
-    grad = [float(sum(A[i][k] * p[k] for k in range(4))) for i in range(3)]
+    grad = [sum(A[i][k] * p[k] for k in range(4)) for i in range(3)]
+    largest = max(abs(v) for v in grad)  # the integer matrix's scale is arbitrary: divide before the floats
+    grad = [float(v / largest) for v in grad]
     norm = math.sqrt(sum(v * v for v in grad))
     return point, [v / norm for v in grad]

@@ -284,11 +284,12 @@ def test_fused_kernel_matches_the_general_path():
             assert t == -1.0 and api is None
         else:
             assert t == pytest.approx(want.time, abs=1e-12)
-            assert api.time == t and api.status_at_start == want.status_at_start
+            # the API settles a bracket wider than 1e-9 in rational arithmetic; the fused kernel keeps its estimate
+            assert api.time == pytest.approx(t, abs=1e-9) and api.status_at_start == want.status_at_start
             if want.point is not None:
                 assert np.allclose(point, want.point, atol=1e-9)
                 assert np.allclose(normal, want.normal, atol=1e-9)
-                assert np.array_equal(api.point, point)
+                assert np.allclose(api.point, point, atol=1e-9)
 
 
 def test_translation_pencil_equals_the_rigid_one():

@@ -38,6 +38,8 @@ from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_ma
 _jit = numba.njit(cache=True, nogil=True)
 
 SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is accepted
+THIN = 8.0               # a body whose largest radius exceeds its smallest this many times is thin
+SHOOT_CONVERGED = 1e-14  # a shoot that advances less than this has reached where F - E meets zero
 EXIT_BOX_TOL = 1e-7      # time width at which the overlap search hands over to bisection
 MAX_SHOOTS = 4000
 MAX_BOXES = 200000
@@ -301,18 +303,22 @@ def _entry_maxima(Pp, Up, sp):
     p = Pp.shape[3] - 1
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
-    bp, bq, br = bz.binomial_row(p), bz.binomial_row(q), bz.binomial_row(r)
+    # 1 / binomial, rounded up (so the maxima stay upper bounds): a multiplication per coefficient
+    bp = (1.0 + 2.0 * EPS) / bz.binomial_row(p)
+    bq = (1.0 + 2.0 * EPS) / bz.binomial_row(q)
+    br = (1.0 + 2.0 * EPS) / bz.binomial_row(r)
     M = np.zeros((4, 4))
     for side in range(2):
         for i in range(3):
-            for j in range(3):
+            for j in range(i, 3):
                 for a in range(p + 1):
-                    M[i, j] = max(M[i, j], abs(Pp[i, j, side, a]) / bp[a])
+                    M[i, j] = max(M[i, j], abs(Pp[i, j, side, a]) * bp[a])
+                M[j, i] = M[i, j]
             for a in range(q + 1):
-                M[i, 3] = max(M[i, 3], abs(Up[i, side, a]) / bq[a])
+                M[i, 3] = max(M[i, 3], abs(Up[i, side, a]) * bq[a])
             M[3, i] = M[i, 3]
         for a in range(r + 1):
-            M[3, 3] = max(M[3, 3], abs(sp[side, a]) / br[a])
+            M[3, 3] = max(M[3, 3], abs(sp[side, a]) * br[a])
     return M
 
 
@@ -360,7 +366,11 @@ def error_bound_global(F, Pp, Up, sp, D):
             delta += part
     K = _chain_length(Pp, Up, sp)
     n = F.shape[1] - 1
-    value = (delta + gamma(K) * perm) * (1.0 + 64.0 * EPS) + gamma(4 * n + 40) * np.abs(F).max()
+    fmax = 0.0
+    for i in range(F.shape[0]):
+        for j in range(F.shape[1]):
+            fmax = max(fmax, abs(F[i, j]))
+    value = (delta + gamma(K) * perm) * (1.0 + 64.0 * EPS) + gamma(4 * n + 40) * fmax
     return np.full(F.shape, value)
 
 
@@ -434,16 +444,22 @@ def _quartic_at(g0, g1, g2, g3, g4, u):
 
 @_jit
 def status_at(F, E, t):
+    """:func:`status_with` with E's largest coefficient taken here."""
+    return status_with(F, E, E.max(), t)
+
+
+@_jit
+def status_with(F, E, emax, t):
     """(status code, max_u F, argmax) at time t, decided with E, the bound of F's coefficient errors.
 
     1 (separate) when F - E > 0 at the argmax, so the true State is positive;
     -1 (overlapping) when F + E < 0 for every u; 0 when neither holds: the
     pair touches, or is closer to touching than the rounding can resolve.
-    E already holds the rounding of these evaluations (:func:`error_bound`).
+    E already holds the rounding of these evaluations (:func:`error_bound_global`); ``emax`` is
+    its largest coefficient, which decides most times without evaluating E.
     """
     g0, g1, g2, g3, g4 = _rows_at(F, t)
     gmax, u = quartic_max5(g0, g1, g2, g3, g4)
-    emax = E.max()
     if gmax > emax:
         return 1, gmax, u
     if gmax < -emax:
@@ -472,16 +488,21 @@ def shoot_first_contact(F, E, t_start, t_max):
     proven over the whole interval.  When the shoots run out (MAX_SHOOTS),
     ``certified`` is False and the first contact, if any, lies in [lower, t_max].
     """
+    emax = E.max()
     t = t_start
-    _, _, u = status_at(F, E, t)
+    _, _, u = status_with(F, E, emax, t)
     h = np.empty(F.shape[1])
     e = np.empty(F.shape[1])
+    uniform = E.min() == E.max()  # the constant bound: E(u, .) is that constant
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
             break
         bz.bivariate_at_u_into(F, u, h)
-        bz.bivariate_at_u_into(E, u, e)
-        h -= e
+        if uniform:
+            h -= E[0, 0]
+        else:
+            bz.bivariate_at_u_into(E, u, e)
+            h -= e
         bz.restrict_into(h, t, t_max)
         if not h[0] > 0.0:  # F - E has come down to zero: the bound can prove no more, the contact is near
             return t, u, t, True
@@ -489,14 +510,14 @@ def shoot_first_contact(F, E, t_start, t_max):
         if r < 0.0:
             break
         t_new = t + r * (t_max - t)
-        code, _, u_new = status_at(F, E, t_new)
-        if code != 1 or t_new <= t:
+        code, _, u_new = status_with(F, E, emax, t_new)
+        if code != 1 or t_new - t <= SHOOT_CONVERGED:  # at the band's edge, or the shoots no longer advance
             return t_new, u_new, t_new, True
         t, u = t_new, u_new
     else:
         return t, u, t, False
     # certified separate up to t_max; a touch exactly at t_max still counts
-    code, _, u_end = status_at(F, E, t_max)
+    code, _, u_end = status_with(F, E, emax, t_max)
     if code != 1:
         return t_max, u_end, t_max, True
     return -1.0, 0.0, t_max, True
@@ -523,7 +544,7 @@ def _entry_upper(F, E, t_c, lower, t_max):
     lowest = np.inf
     while t < t_max:
         t = min(t_c + w, t_max)
-        code, gmax, _ = status_at(F, E, t)
+        code, gmax, _ = status_with(F, E, emax, t)
         if code == -1:
             return t
         lowest = min(lowest, gmax)
@@ -543,10 +564,33 @@ def _entry_estimate(F, E, t_c, lower, t_max):
     if upper > t_c and state(F, t_c)[0] > 0.0:
         at_upper = state(F, upper)[0]
         if at_upper < 0.0:
-            return _bisect_sign(F, t_c, upper, False), upper
+            return _zero_of_state(F, t_c, upper), upper
         if at_upper == 0.0:  # e.g. a touch exactly at t_max
             return upper, upper
     return t_c, upper
+
+
+@_jit
+def _zero_of_state(F, lo, hi):
+    """The zero of the computed State in [lo, hi] (State > 0 at lo, < 0 at hi): Newton's steps on F(u*, .)
+    from lo, which converge quadratically at a regular contact; regula falsi when a step leaves the bracket."""
+    t = lo
+    for _ in range(8):
+        gmax, u = state(F, t)
+        if gmax <= 0.0:
+            hi = t
+            break
+        lo = t
+        _, slope = bz.value_and_slope(bz.bivariate_at_u(F, u), t)
+        if not slope < 0.0:
+            break
+        step = -gmax / slope
+        if not t + step < hi:
+            break
+        t += step
+        if step <= 4.0 * EPS * t:
+            return t
+    return _bisect_sign(F, lo, hi, False)
 
 
 # ---------------------------------------------------------------- end of an overlap
@@ -979,11 +1023,12 @@ def _step_off(F, E, t, t_end):
     resolution (1e-6) until one is decided or t_end is reached (code 0): a
     stretch of touching, e.g. two bodies that touch for the whole step.
     """
+    emax = E.max()
     eps = 1e-13
     last = t
     while True:
         tp = min(t + eps, t_end)
-        code, _, _ = status_at(F, E, tp)
+        code, _, _ = status_with(F, E, emax, tp)
         if code != 0 or tp >= t_end:
             return tp, code, last
         last = tp
@@ -993,11 +1038,12 @@ def _step_off(F, E, t, t_end):
 @_jit
 def _end_of_touch(F, E, lo, hi):
     """Last touching time between ``lo`` (touching) and ``hi`` (separate): bisection on the decided status."""
+    emax = E.max()
     for _ in range(60):
         if hi - lo <= 4.0 * 2.220446049250313e-16 * max(1.0, hi):
             break
         mid = 0.5 * (lo + hi)
-        code, _, _ = status_at(F, E, mid)
+        code, _, _ = status_with(F, E, emax, mid)
         if code == 1:
             hi = mid
         else:
@@ -1048,10 +1094,11 @@ def solve_intervals(F, E, t_max, first_only):
     ``reached`` is -1, or, when a limit of the search (shoots, boxes,
     intervals) stopped it, the time up to which the answer is complete.
     """
+    emax = E.max()
     out = np.empty((64, 2))
     bounds = np.empty((64, 4))
     k = 0
-    status0, _, u_first = status_at(F, E, 0.0)
+    status0, _, u_first = status_with(F, E, emax, 0.0)
     if status0 == 1:
         t_in, u_first, lower, certified = shoot_first_contact(F, E, 0.0, t_max)
         if not certified:
@@ -1266,9 +1313,15 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     """
     length = max(ra.max(), rb.max())
     translating = same_orientation(qa0, qa1) and same_orientation(qb0, qb1)
-    frame = quat_to_matrix(qa0)
-    origin = pa0
-    qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1 = _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating)
+    # thin bodies are taken in A's frame (A's quadric diagonal); for the others it buys nothing
+    framed = ra.max() > THIN * ra.min() or rb.max() > THIN * rb.min()
+    if framed:
+        frame = quat_to_matrix(qa0)
+        origin = pa0
+        qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1 = _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating)
+    else:
+        frame = np.eye(3)
+        origin = np.zeros(3)
     if translating:  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
@@ -1293,7 +1346,7 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
             rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
     err = np.empty((2, 4, 4))
     zero = np.zeros(3)
-    err[0] = pose_side_errors(ra, length, zero, zero, translating)
+    err[0] = pose_side_errors(ra, length, zero, zero, translating and framed)
     err[1] = pose_side_errors(rb, length, (pb0 - pa0) / length, (pb1 - pa1) / length, False)
     status0, intervals, bounds, u, reached, tier = solve_balanced(Pp, Up, sp, err, t_max, first_only)
     point = np.zeros(3)

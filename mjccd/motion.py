@@ -308,9 +308,10 @@ def pose_side_errors(radii, length, c0, c1, identity):
     P = diag(d) (d rounded), U = 0 and s = -1 exactly.
     """
     e = np.zeros((4, 4))
-    d0 = (length / radii[0]) ** 2
-    d1 = (length / radii[1]) ** 2
-    d2 = (length / radii[2]) ** 2
+    d0 = length / radii[0]
+    d1 = length / radii[1]
+    d2 = length / radii[2]
+    d0, d1, d2 = d0 * d0, d1 * d1, d2 * d2
     if identity:
         e[0, 0] = 3.0 * EPS * d0
         e[1, 1] = 3.0 * EPS * d1

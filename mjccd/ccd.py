@@ -57,7 +57,7 @@ EXACT_PROBES = 64        # probes end * 2^-k (k = 64 .. 1) that look for the fir
 SAME_ORIENTATION = 8 * 2.220446049250313e-16
 EVAL_ROUNDING = 64 * EPS  # relative rounding of evaluating F's rows at a time and of a quartic's maximum
 DOUBLE, DOUBLE_TIGHT, RATIONAL = 0, 1, 2  # precision tiers: constant error bound, coefficient-wise bound, exact
-TIME_TOL = 1e-9           # an event is certified when its proven bracket is at most this wide
+TIME_TOL = 1e-9           # an event is certified when its time is this close to both ends of its proven bracket
 
 
 # ---------------------------------------------------------------- building F
@@ -1151,12 +1151,14 @@ def solve_intervals(F, E, t_max, first_only):
 
 @_jit
 def verdict(intervals, bounds, reached, t_max):
-    """(certified, lo, hi) of a solve: certified when no limit was hit and every proven bracket is at most
-    TIME_TOL wide; [lo, hi] then holds every possible first contact ([-1, -1]: none)."""
+    """(certified, lo, hi) of a solve: certified when no limit was hit and every reported time is within
+    TIME_TOL of both ends of its proven bracket; [lo, hi] holds every possible first contact ([-1, -1]: none)."""
     certified = reached < 0.0
-    for k in range(bounds.shape[0]):
-        if bounds[k, 1] - bounds[k, 0] > TIME_TOL or bounds[k, 3] - bounds[k, 2] > TIME_TOL:
-            certified = False
+    for k in range(bounds.shape[0]):  # every reported time within TIME_TOL of every time its bracket allows
+        for end in range(2):
+            t = intervals[k, end]
+            if max(t - bounds[k, 2 * end], bounds[k, 2 * end + 1] - t) > TIME_TOL:
+                certified = False
     if intervals.shape[0] > 0:
         return certified, bounds[0, 0], bounds[0, 1]
     if reached >= 0.0:
@@ -1598,7 +1600,8 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
         # a time the pair is not separate inside interval k: the entry's proven-overlap end, refined below
         inside = Fraction(0) if k == 0 and solution.status_at_start != 1 else Fraction(float(bounds[k, 1]))
         for end, (lo, hi), separate_at_lo in ((0, bounds[k, 0:2], True), (1, bounds[k, 2:4], False)):
-            if hi - lo <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
+            t = intervals[k, end]
+            if max(t - lo, hi - t) <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
                 continue
             found = pair.separation_change(lo, hi, separate_at_lo)
             if found is None and end == 0:  # separate again at hi (a graze in the band): look for a contact inside
@@ -1649,11 +1652,14 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
                        bracket=(0.0, float(end)), point=None, normal=None)
     t = found[0]
     intervals = solution.intervals.copy()
-    intervals[0, 0] = t
+    bounds = solution.bounds.copy()
+    intervals[0, 0] = bounds[0, 0] = bounds[0, 1] = t
     if first_only:
-        intervals[0, 1] = t
+        intervals[0, 1] = bounds[0, 2] = bounds[0, 3] = t
+    certified, _, _ = verdict(intervals, bounds, solution.reached, 1.0)
     point, normal = pair.touch(t)
-    return replace(solution, status_at_start=1, intervals=intervals, point=point, normal=normal, bracket=(t, t))
+    return replace(solution, status_at_start=1, intervals=intervals, bounds=bounds, point=point, normal=normal,
+                   bracket=(t, t), certified=bool(certified))
 
 
 def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
@@ -1676,7 +1682,7 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
                                 bool(certified), (float(lo), float(hi)), bounds, float(reached), int(tier))
     if solution.status_at_start == 0:
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
-    elif not solution.certified and solution.reached < 0.0:
+    if not solution.certified and solution.reached < 0.0 and solution.status_at_start == 1:
         solution = _refine_exactly(a, motion_a, b, motion_b, solution)
     return solution
 

@@ -15,6 +15,7 @@ Degrees in t of (P, U, s): static (0, 0, 0); rigid (4, 5, 6); affine
 (4k, 4k, 4k) at most.
 """
 import abc
+import math
 from fractions import Fraction
 
 import numba
@@ -373,12 +374,21 @@ def quadric_at(P, U, s, t):
 
 
 def _exact_bernstein(c, t):
-    """Value of the Bernstein polynomial ``c`` (doubles) at the rational t, exactly (de Casteljau)."""
-    work = [Fraction(float(x)) for x in c]
-    for r in range(1, len(work)):
-        for i in range(len(work) - r):
-            work[i] = (1 - t) * work[i] + t * work[i + 1]
-    return work[0]
+    """Value of the Bernstein polynomial ``c`` (doubles) at the rational t, exactly.
+
+    de Casteljau in integers: the coefficients over one common denominator,
+    t = num / den, each level multiplied through by den; one Fraction at the end.
+    """
+    t = Fraction(t)
+    num, den = t.numerator, t.denominator
+    coefficients = [Fraction(float(x)) for x in c]
+    scale = math.lcm(*(f.denominator for f in coefficients))
+    work = [f.numerator * (scale // f.denominator) for f in coefficients]
+    n = len(work) - 1
+    for r in range(1, n + 1):
+        for i in range(n - r + 1):
+            work[i] = (den - num) * work[i] + num * work[i + 1]
+    return Fraction(work[0], scale * den ** n)
 
 
 def _restrict_all(c, t0, t1):

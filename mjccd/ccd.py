@@ -31,7 +31,7 @@ import numpy as np
 
 from mjccd import _validate, exact
 from mjccd import bernstein as bz
-from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, pose_side_errors, quadric_affine, quadric_at,
+from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, gamma, pose_side_errors, quadric_affine, quadric_at,
                           rigid_scaled_into, translation_scaled_into)
 from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
 
@@ -283,12 +283,6 @@ def _pencil_determinant(Pp, Up, sp, sign):
 # the rounding of F_from_pencil itself: a straight-line program of sums and
 # products whose error is at most gamma_K times the same program run on
 # absolute values (F_abs_from_pencil), K its longest chain of roundings.
-
-
-@_jit
-def gamma(k):
-    """gamma_k = k u / (1 - k u): the relative error bound of k rounded operations."""
-    return k * EPS / (1.0 - k * EPS)
 
 
 _PERMUTATIONS = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 1, 3), (0, 2, 3, 1), (0, 3, 1, 2), (0, 3, 2, 1),

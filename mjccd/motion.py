@@ -291,7 +291,7 @@ def quadric_affine(radii, p0, q0, p1, q1):
 
 
 @_jit
-def _gamma(k):
+def gamma(k):
     """gamma_k = k u / (1 - k u): the relative error bound of k rounded operations (u the unit roundoff)."""
     return k * EPS / (1.0 - k * EPS)
 
@@ -322,9 +322,9 @@ def pose_side_errors(radii, length, c0, c1, identity):
     C = max(abs(c0[0]) + abs(c0[1]) + abs(c0[2]), abs(c1[0]) + abs(c1[1]) + abs(c1[2]))
     for i in range(3):
         for j in range(3):
-            e[i, j] = _gamma(80) * S
-        e[i, 3] = e[3, i] = _gamma(100) * S * C
-    e[3, 3] = _gamma(120) * (S * C * C + 1.0)
+            e[i, j] = gamma(80) * S
+        e[i, 3] = e[3, i] = gamma(100) * S * C
+    e[3, 3] = gamma(120) * (S * C * C + 1.0)
     return e
 
 
@@ -339,7 +339,7 @@ def w_quadric_errors(G, h, g, radii):
     perturbs them by gamma_2n, covered here too).
     """
     n = max(G.shape[2], h.shape[1], g.shape[0])
-    rho = _gamma(6 * n + 40)
+    rho = gamma(6 * n + 40)
     d = 1.0 / (radii * radii)
     Gm = np.empty((3, 3))
     hm = np.empty(3)

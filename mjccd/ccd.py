@@ -558,10 +558,26 @@ def _entry_estimate(F, E, t_c, lower, t_max):
     if upper > t_c and state(F, t_c)[0] > 0.0:
         at_upper = state(F, upper)[0]
         if at_upper < 0.0:
-            return _zero_of_state(F, t_c, upper), upper
+            t = _zero_of_state(F, t_c, upper)
+            return t, _tighter_upper(F, E, t, upper)
         if at_upper == 0.0:  # e.g. a touch exactly at t_max
             return upper, upper
     return t_c, upper
+
+
+@_jit
+def _tighter_upper(F, E, t, upper):
+    """A proven-overlapping time closer to the estimate t than ``upper`` (which is proven overlapping), when
+    the bracket is too wide for TIME_TOL: bisection on the overlapping status down towards t."""
+    emax = E.max()
+    for _ in range(40):
+        if upper - t <= 0.5 * TIME_TOL:
+            break
+        mid = 0.5 * (t + upper)
+        if status_with(F, E, emax, mid)[0] != -1:
+            break
+        upper = mid
+    return upper
 
 
 @_jit

@@ -44,11 +44,8 @@ def ring(mjccd, ccd, depth, lift=None):
                 ccd.status_at(F, Fabs, ccd.NOISE, 0.0)[0])
     pencil, err, _ = ccd.prepare_pair(*chain.quadric_bounded_on(a.radii, 0.0, 1.0),
                                       *mb.quadric_bounded_on(b.radii, 0.0, 1.0), 0.5)
-    Pp, Up, sp = pencil
-    inv = np.array([ccd.balance_side(Pp, Up, sp, 0), ccd.balance_side(Pp, Up, sp, 1)])
-    D = ccd.entry_errors_balanced(err, inv, ccd._entry_maxima(Pp, Up, sp))
-    F = ccd.F_from_pencil(Pp, Up, sp)
-    E = ccd.error_bound_tight(F, Pp, Up, sp, D)
+    F, D = ccd.balanced_F(*pencil, err)
+    E = ccd.error_bound_tight(F, *pencil, D)
     return F, lambda: ccd.search_exit(F, E, 0.0, 1.0), ccd.status_at(F, E, 0.0)[0]
 
 

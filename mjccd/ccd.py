@@ -607,53 +607,6 @@ def _zero_of_state(F, lo, hi):
 
 
 @_jit
-def _split_t(C):
-    left = np.empty_like(C)
-    right = np.empty_like(C)
-    for i in range(C.shape[0]):
-        a, b = bz.subdivide(C[i].copy(), 0.5)
-        left[i] = a
-        right[i] = b
-    return left, right
-
-
-@_jit
-def _split_u(C):
-    """The box halved in u: de Casteljau at 1/2 on the rows, all columns at once."""
-    m = C.shape[0] - 1
-    work = C.copy()
-    low = np.empty_like(C)
-    high = np.empty_like(C)
-    low[0] = work[0]
-    high[m] = work[m]
-    for r in range(1, m + 1):
-        for i in range(m - r + 1):
-            for j in range(C.shape[1]):
-                work[i, j] = 0.5 * (work[i, j] + work[i + 1, j])
-        low[r] = work[0]
-        high[m - r] = work[m - r]
-    return low, high
-
-
-@_jit
-def _certified_negative(C):
-    """True when F < 0 on the box of coefficients C (quartic in u by degree n in t).
-
-    F(u, t) <= sum_i (max_j C[i, j]) B_i(u) for every t in the box, and the
-    maximum over u of that quartic is taken exactly, so no split in u is
-    needed where F is negative at every time but close to zero at one u.
-    """
-    cmax = C.max()
-    if cmax < 0.0:
-        return True
-    r = np.empty(5)
-    for i in range(5):
-        r[i] = C[i].max()
-    gmax, _ = quartic_max(r)
-    return gmax < -CERTIFY_ULPS * max(cmax, -C.min())
-
-
-@_jit
 def _bisect_sign(F, lo, hi, rising):
     """Zero of State between lo and hi (State < 0 at lo when ``rising``, > 0 otherwise).
 
@@ -833,7 +786,12 @@ def _exit_heap_pop(ht, hq, hs, nh):
 
 @_jit
 def _exit_box_negative(C):
-    """:func:`_certified_negative` without allocation (the row maxima as scalars)."""
+    """True when F < 0 on the box of coefficients C (quartic in u by degree n in t).
+
+    F(u, t) <= sum_i (max_j C[i, j]) B_i(u) for every t in the box, and the
+    maximum over u of that quartic is taken exactly, so no split in u is
+    needed where F is negative at every time but close to zero at one u.
+    """
     cmax = C.max()
     if cmax < 0.0:
         return True
@@ -865,7 +823,7 @@ def _exit_split_t_into(work, low, high):
 
 @_jit
 def _exit_split_u_into(work, low, high):
-    """:func:`_split_u` of ``work`` (destroyed) into low and high: de Casteljau at u = 1/2 on all columns."""
+    """The box ``work`` (destroyed) halved in u into low and high: de Casteljau at u = 1/2 on all columns."""
     m = work.shape[0] - 1
     low[0] = work[0]
     high[m] = work[m]
@@ -1334,19 +1292,18 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     else:
         frame = np.eye(3)
         origin = np.zeros(3)
+    zero = np.zeros(3)
     if translating:  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
         translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
         translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)
     elif affine_a and affine_b:
         Pp, Up, sp = empty_pencil(1, 2, 3)
-        zero = np.zeros(3)
         pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
         pencil_side_into(*quadric_affine(rb / length, (pb0 - pa0) / length, qb0, (pb1 - pa1) / length, qb1),
                          Pp, Up, sp, 1)
     else:
         Pp, Up, sp = empty_pencil(4, 5, 6)
-        zero = np.zeros(3)
         if affine_a:
             pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
         else:
@@ -1357,7 +1314,6 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
         else:
             rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
     err = np.empty((2, 4, 4))
-    zero = np.zeros(3)
     err[0] = pose_side_errors(ra, length, zero, zero, translating and framed)
     err[1] = pose_side_errors(rb, length, (pb0 - pa0) / length, (pb1 - pa1) / length, False)
     status0, intervals, bounds, u, reached, tier = solve_balanced(Pp, Up, sp, err, t_max, first_only)
@@ -1376,6 +1332,18 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
 
 
 @_jit
+def balanced_F(Pp, Up, sp, err):
+    """Balance the pencil in place and build F: (F, D), D the 4x4 bounds of the balanced entries' errors
+    (``err`` (2, 4, 4): each side's before balancing), for :func:`error_bound_global` or
+    :func:`error_bound_tight`."""
+    inv = np.empty(2)
+    inv[0] = balance_side(Pp, Up, sp, 0)
+    inv[1] = balance_side(Pp, Up, sp, 1)
+    D = entry_errors_balanced(err, inv, _entry_maxima(Pp, Up, sp))
+    return F_from_pencil(Pp, Up, sp), D
+
+
+@_jit
 def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     """Balance the pencil, build F and solve it: first with the cheap constant error bound, again with the
     coefficient-wise one when that leaves a bracket wider than TIME_TOL.  See :func:`solve_intervals`.
@@ -1383,11 +1351,7 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     ``err`` (2, 4, 4): bounds of each side's entry errors before balancing.
     Returns :func:`solve_intervals`'s values and the precision tier used.
     """
-    inv = np.empty(2)
-    inv[0] = balance_side(Pp, Up, sp, 0)
-    inv[1] = balance_side(Pp, Up, sp, 1)
-    D = entry_errors_balanced(err, inv, _entry_maxima(Pp, Up, sp))
-    F = F_from_pencil(Pp, Up, sp)
+    F, D = balanced_F(Pp, Up, sp, err)
     E = error_bound_global(F, Pp, Up, sp, D)
     status0, intervals, bounds, u, reached = solve_intervals(F, E, t_max, first_only)
     certified, _, _ = verdict(intervals, bounds, reached, t_max)

@@ -22,11 +22,8 @@ def _pair(a, motion_a, b, motion_b):
     length = float(max(a.radii.max(), b.radii.max()))
     pencil, err, _ = ccd.prepare_pair(*motion_a.quadric_bounded_on(a.radii, 0.0, 1.0),
                                       *motion_b.quadric_bounded_on(b.radii, 0.0, 1.0), length)
-    Pp, Up, sp = pencil
-    inv = np.array([ccd.balance_side(Pp, Up, sp, 0), ccd.balance_side(Pp, Up, sp, 1)])
-    D = ccd.entry_errors_balanced(err, inv, ccd._entry_maxima(Pp, Up, sp))
-    F = ccd.F_from_pencil(Pp, Up, sp)
-    E = ccd.error_bound_tight(F, Pp, Up, sp, D)
+    F, D = ccd.balanced_F(*pencil, err)
+    E = ccd.error_bound_tight(F, *pencil, D)
     return F, E
 
 
@@ -88,7 +85,7 @@ def _reference_exit(F, E, t_start, t_end):
         t0, idx = heapq.heappop(heap)
         C, t1 = boxes[idx], ends[idx]
         count += 1
-        if ccd._certified_negative(C):
+        if ccd._exit_box_negative(C):
             continue
         if count > ccd.MAX_BOXES:
             return t0, False
@@ -111,11 +108,12 @@ def _reference_exit(F, E, t_start, t_end):
             continue
         span_t = (C.max(axis=1) - C.min(axis=1)).max()
         span_u = (C.max(axis=0) - C.min(axis=0)).max()
+        a, b = np.empty_like(C), np.empty_like(C)
         if span_t >= span_u:
-            a, b = ccd._split_t(C)
+            ccd._exit_split_t_into(C.copy(), a, b)
             a_end = b_start = 0.5 * (t0 + t1)
         else:
-            a, b = ccd._split_u(C)
+            ccd._exit_split_u_into(C.copy(), a, b)
             a_end, b_start = t1, t0
         boxes += [a, b]
         ends += [a_end, t1]

@@ -44,7 +44,7 @@ def ring(mjccd, ccd, depth, lift=None):
                 ccd.status_at(F, Fabs, ccd.NOISE, 0.0)[0])
     pencil, err, _ = ccd.prepare_pair(*chain.quadric_bounded_on(a.radii, 0.0, 1.0),
                                       *mb.quadric_bounded_on(b.radii, 0.0, 1.0), 0.5)
-    F, D = ccd.balanced_F(*pencil, err)
+    F, D, _ = ccd.balanced_F(*pencil, err)
     E = ccd.error_bound_tight(F, *pencil, D)
     return F, lambda: ccd.search_exit(F, E, 0.0, 1.0), ccd.status_at(F, E, 0.0)[0]
 

@@ -43,6 +43,17 @@ def binomial_row(n):
     return row
 
 
+@_jit
+def binomial(n, k):
+    """C(n, k) as a float: exact from the table up to TABLED_DEGREE, else a product of k rounded ratios."""
+    if n <= TABLED_DEGREE:
+        return BINOMIALS[n, k]
+    value = 1.0
+    for i in range(1, k + 1):
+        value = value * (n - i + 1) / i
+    return value
+
+
 # ---------------------------------------------------------------- univariate
 
 
@@ -467,11 +478,18 @@ def _binomial_grid(m, n):
 @_jit
 def from_scaled_into(S):
     """In place: a bivariate polynomial in scaled form back to plain Bernstein coefficients (returns ``S``)."""
-    bm = binomial_row(S.shape[0] - 1)
-    bn = binomial_row(S.shape[1] - 1)
-    for i in range(S.shape[0]):
-        for j in range(S.shape[1]):
-            S[i, j] /= bm[i] * bn[j]
+    m = S.shape[0] - 1
+    n = S.shape[1] - 1
+    if max(m, n) > TABLED_DEGREE:
+        bm = binomial_row(m)
+        bn = binomial_row(n)
+        for i in range(m + 1):
+            for j in range(n + 1):
+                S[i, j] /= bm[i] * bn[j]
+        return S
+    for i in range(m + 1):
+        for j in range(n + 1):
+            S[i, j] /= BINOMIALS[m, i] * BINOMIALS[n, j]
     return S
 
 

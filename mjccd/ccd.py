@@ -23,16 +23,16 @@ edges u = 0 and u = 1, and at each time t the pair is separate exactly when
 ``first_contact`` and ``collision_intervals`` are the public entry points;
 everything below them runs in numba on plain arrays.
 """
-from dataclasses import dataclass, replace
 from fractions import Fraction
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from mjccd import _validate, exact
 from mjccd import bernstein as bz
-from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, gamma, pose_side_errors, quadric_affine, quadric_at,
-                          rigid_scaled_into, translation_scaled_into)
+from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, centre_extent, gamma, pose_side_errors, quadric_affine,
+                          quadric_at, rigid_scaled_into, translation_scaled_into)
 from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -40,6 +40,8 @@ _jit = numba.njit(cache=True, nogil=True)
 SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is accepted
 THIN = 8.0               # a body whose largest radius exceeds its smallest this many times is thin
 SHOOT_CONVERGED = 1e-14  # a shoot that advances less than this has reached where F - E meets zero
+SECANT_SPAN = 1e-8       # a Newton step past the contact by less than this is finished by one secant step
+SHOOT_BAND = 4.0         # a shoot landing where State is within this many bands of zero is at the contact
 EXIT_BOX_TOL = 1e-7      # time width at which the overlap search hands over to bisection
 MAX_SHOOTS = 4000
 MAX_BOXES = 200000
@@ -236,12 +238,9 @@ def _pencil_determinant(Pp, Up, sp, sign):
     p = Pp.shape[3] - 1
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
-    C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p)
+    C = np.zeros((3, 3, 3, 2 * p + 1))  # adj(P), degree (2, 2p): the upper triangle, read symmetrically
     for i, j, a, b, c, d, e, f, g, h in _ADJUGATE_TERMS:
         _minor_into(C[i, j], Pp[a, b], Pp[c, d], Pp[e, f], Pp[g, h], sign)
-    for i in range(3):
-        for j in range(i):
-            C[i, j] = C[j, i]
     detP = np.zeros((4, 3 * p + 1))
     _dot3_into(detP, Pp[0, 0], Pp[0, 1], Pp[0, 2], C[0, 0], C[0, 1], C[0, 2], 1.0)
     n1 = 3 * p + r
@@ -259,8 +258,9 @@ def _pencil_determinant(Pp, Up, sp, sign):
     u_rows = 1 if a_centred else 2
     U = Up[:, 2 - u_rows:]
     V = np.zeros((3, u_rows + 2, 2 * p + q + 1))  # V_i = sum_j adj(P)_ij U_j
-    for i in range(3):
-        _dot3_into(V[i], U[0], U[1], U[2], C[i, 0], C[i, 1], C[i, 2], 1.0)
+    _dot3_into(V[0], U[0], U[1], U[2], C[0, 0], C[0, 1], C[0, 2], 1.0)
+    _dot3_into(V[1], U[0], U[1], U[2], C[0, 1], C[1, 1], C[1, 2], 1.0)
+    _dot3_into(V[2], U[0], U[1], U[2], C[0, 2], C[1, 2], C[2, 2], 1.0)
     _dot3_into(F2[4 - 2 * u_rows:], U[0], U[1], U[2], V[0], V[1], V[2], sign)
     F = bz.from_scaled_into(F)
     if n1 == n2:
@@ -297,22 +297,23 @@ def _entry_maxima(Pp, Up, sp):
     p = Pp.shape[3] - 1
     q = Up.shape[2] - 1
     r = sp.shape[1] - 1
-    # 1 / binomial, rounded up (so the maxima stay upper bounds): a multiplication per coefficient
-    bp = (1.0 + 2.0 * EPS) / bz.binomial_row(p)
-    bq = (1.0 + 2.0 * EPS) / bz.binomial_row(q)
-    br = (1.0 + 2.0 * EPS) / bz.binomial_row(r)
     M = np.zeros((4, 4))
     for side in range(2):
         for i in range(3):
             for j in range(i, 3):
                 for a in range(p + 1):
-                    M[i, j] = max(M[i, j], abs(Pp[i, j, side, a]) * bp[a])
-                M[j, i] = M[i, j]
+                    M[i, j] = max(M[i, j], abs(Pp[i, j, side, a]) / bz.binomial(p, a))
             for a in range(q + 1):
-                M[i, 3] = max(M[i, 3], abs(Up[i, side, a]) * bq[a])
-            M[3, i] = M[i, 3]
+                M[i, 3] = max(M[i, 3], abs(Up[i, side, a]) / bz.binomial(q, a))
         for a in range(r + 1):
-            M[3, 3] = max(M[3, 3], abs(sp[side, a]) * br[a])
+            M[3, 3] = max(M[3, 3], abs(sp[side, a]) / bz.binomial(r, a))
+    # every division (and an untabled binomial's product of 2k roundings) rounded up; the matrix symmetric
+    n = max(p, q, r)
+    slack = 1.0 + 4.0 * EPS if n <= bz.TABLED_DEGREE else 1.0 + (4.0 * n + 4.0) * EPS
+    for i in range(4):
+        for j in range(i, 4):
+            M[i, j] *= slack
+            M[j, i] = M[i, j]
     return M
 
 
@@ -336,15 +337,14 @@ def entry_errors_balanced(err, inv, M):
 
 
 @_jit
-def error_bound_global(F, Pp, Up, sp, D):
+def error_bound_global(F, Pp, Up, sp, D, M):
     """E as one constant: a bound of every coefficient's error from maxima alone (cheap).
 
-    With M the entries' coefficient maxima and D their error bounds, every
+    With M the entries' coefficient maxima (:func:`_entry_maxima`) and D their error bounds, every
     coefficient of F_abs is at most perm(M) and the entries' errors move F by
     at most perm(M + D) - perm(M) (each term of the permanent is a product of
     four entries, and Bernstein products are convex combinations).
     """
-    M = _entry_maxima(Pp, Up, sp)
     perm = 0.0
     delta = 0.0
     for pi in _PERMUTATIONS:
@@ -402,6 +402,9 @@ def error_bound_tight(F, Pp, Up, sp, D):
 def _rows_at(F, t):
     """F(., t) as five Bernstein coefficients in u: the five rows evaluated in one Horner pass."""
     n = F.shape[1] - 1
+    if t == 0.0 or t == 1.0:
+        end = 0 if t == 0.0 else n
+        return F[0, end], F[1, end], F[2, end], F[3, end], F[4, end]
     if n > bz.TABLED_DEGREE:
         return (bz.evaluate_row(F, 0, t), bz.evaluate_row(F, 1, t), bz.evaluate_row(F, 2, t),
                 bz.evaluate_row(F, 3, t), bz.evaluate_row(F, 4, t))
@@ -471,10 +474,10 @@ def status_with(F, E, emax, t):
 
 
 @_jit
-def shoot_first_contact(F, E, t_start, t_max):
+def shoot_first_contact(F, E, t_start, t_max, u):
     """Earliest contact in [t_start, t_max] by recursive Bézier shoots.
 
-    Requires the pair to be separate at t_start.  Returns (time, u, lower,
+    Requires the pair to be separate at t_start, where State's argmax is ``u``.  Returns (time, u, lower,
     certified): where the shoots stopped (State inside the rounding band),
     the argmax there, and ``lower``, up to which separation is proven: each shoot
     follows F(u*, .) - E(u*, .), a lower bound of the true F(u*, .), so the
@@ -484,10 +487,9 @@ def shoot_first_contact(F, E, t_start, t_max):
     """
     emax = E.max()
     t = t_start
-    _, _, u = status_with(F, E, emax, t)
     h = np.empty(F.shape[1])
-    e = np.empty(F.shape[1])
     uniform = E.min() == E.max()  # the constant bound: E(u, .) is that constant
+    e = h if uniform else np.empty(F.shape[1])
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
             break
@@ -504,8 +506,9 @@ def shoot_first_contact(F, E, t_start, t_max):
         if r < 0.0:
             break
         t_new = t + r * (t_max - t)
-        code, _, u_new = status_with(F, E, emax, t_new)
-        if code != 1 or t_new - t <= SHOOT_CONVERGED:  # at the band's edge, or the shoots no longer advance
+        code, gmax, u_new = status_with(F, E, emax, t_new)
+        # at the band's edge, the shoots no longer advance, or (constant bound) within a few bands of it
+        if code != 1 or t_new - t <= SHOOT_CONVERGED or (uniform and gmax <= SHOOT_BAND * emax):
             return t_new, u_new, t_new, True
         t, u = t_new, u_new
     else:
@@ -518,20 +521,27 @@ def shoot_first_contact(F, E, t_start, t_max):
 
 
 @_jit
-def _entry_upper(F, E, t_c, lower, t_max):
+def _state_and_slope(F, t, h):
+    """(max_u F(u, t), its argmax u, dF(u, .)/dt at t): ``h`` is a buffer of F's row length."""
+    gmax, u = state(F, t)
+    bz.bivariate_at_u_into(F, u, h)
+    _, slope = bz.value_and_slope(h, t)
+    return gmax, u, slope
+
+
+@_jit
+def _entry_upper(F, E, t_c, lower, t_max, gmax, slope):
     """The upper end of the bracket of a contact estimated at t_c (proven separate before ``lower``).
 
+    ``gmax`` and ``slope``: State and its slope at t_c (:func:`_state_and_slope`).
     The first probe t_c + w 2^k (w from State's slope at t_c) that is proven overlapping:
     the contact lies in [lower, probe]; or the first proven separate again
     after probes inside the rounding band: the pair stayed inside the band in
     between (a touch, or a miss by less than the rounding), and [lower, probe]
-    is where a contact may be.  The shoots stop where State is at the band's
-    edge, so the first probes may still be separate.
-    t_max when no probe is decided (touching to the end).
+    is where a contact may be.  The shoots stop near the band's edge, so the first probes may still be
+    separate.  Returns (probe, computed State there); t_max when no probe is decided (touching to the end).
     """
     emax = E.max()
-    gmax, u = state(F, t_c)
-    _, slope = bz.value_and_slope(bz.bivariate_at_u(F, u), t_c)
     # first probe: where State, going down at this slope, would be 2 emax below zero
     w = max(t_c - lower, (gmax + 2.0 * emax) / -slope if slope < 0.0 else 0.0, 1e-16)
     t = t_c
@@ -540,25 +550,26 @@ def _entry_upper(F, E, t_c, lower, t_max):
         t = min(t_c + w, t_max)
         code, gmax, _ = status_with(F, E, emax, t)
         if code == -1:
-            return t
+            return t, gmax
         lowest = min(lowest, gmax)
         # separate again: State has risen by more than its rounding since its lowest probe (a graze), or the
         # probes never went inside the band (the bracket stays wide)
         if code == 1 and (gmax > lowest + 2.0 * emax or w > TOUCH_SPAN):
-            return t
+            return t, gmax
         w *= 2.0
-    return t_max
+    return t_max, state(F, t_max)[0]
 
 
 @_jit
 def _entry_estimate(F, E, t_c, lower, t_max):
     """(estimate, upper end of the bracket) of a contact where the shoots stopped at t_c: the estimate is
     the zero of the computed State inside [lower, upper] when it changes sign there, else t_c."""
-    upper = _entry_upper(F, E, t_c, lower, t_max)
-    if upper > t_c and state(F, t_c)[0] > 0.0:
-        at_upper = state(F, upper)[0]
+    h = np.empty(F.shape[1])
+    gmax, u, slope = _state_and_slope(F, t_c, h)
+    upper, at_upper = _entry_upper(F, E, t_c, lower, t_max, gmax, slope)
+    if upper > t_c and gmax > 0.0:
         if at_upper < 0.0:
-            t = _zero_of_state(F, t_c, upper)
+            t = _zero_of_state(F, t_c, upper, gmax, slope, h)
             return t, _tighter_upper(F, E, t, upper)
         if at_upper == 0.0:  # e.g. a touch exactly at t_max
             return upper, upper
@@ -581,17 +592,25 @@ def _tighter_upper(F, E, t, upper):
 
 
 @_jit
-def _zero_of_state(F, lo, hi):
-    """The zero of the computed State in [lo, hi] (State > 0 at lo, < 0 at hi): Newton's steps on F(u*, .)
-    from lo, which converge quadratically at a regular contact; regula falsi when a step leaves the bracket."""
+def _zero_of_state(F, lo, hi, gmax, slope, h):
+    """The zero of the computed State in [lo, hi] (State ``gmax`` > 0 at lo, with ``slope``; < 0 at hi).
+
+    Newton's steps on F(u*, .) from lo, which converge quadratically at a
+    regular contact; a step that lands past the zero within SECANT_SPAN is
+    finished by one secant step between the last two iterates (its error is
+    of the order of that width squared); regula falsi when a step leaves the
+    bracket.  ``h``: a buffer of F's row length.
+    """
     t = lo
-    for _ in range(8):
-        gmax, u = state(F, t)
-        if gmax <= 0.0:
-            hi = t
-            break
-        lo = t
-        _, slope = bz.value_and_slope(bz.bivariate_at_u(F, u), t)
+    for it in range(8):
+        if it > 0:
+            g, _, slope = _state_and_slope(F, t, h)
+            if g <= 0.0:
+                if t - lo <= SECANT_SPAN:
+                    return lo + (t - lo) * gmax / (gmax - g)
+                hi = t
+                break
+            lo, gmax = t, g
         if not slope < 0.0:
             break
         step = -gmax / slope
@@ -1068,7 +1087,7 @@ def solve_intervals(F, E, t_max, first_only):
     k = 0
     status0, _, u_first = status_with(F, E, emax, 0.0)
     if status0 == 1:
-        t_in, u_first, lower, certified = shoot_first_contact(F, E, 0.0, t_max)
+        t_in, u_first, lower, certified = shoot_first_contact(F, E, 0.0, t_max, u_first)
         if not certified:
             return status0, out[:0], bounds[:0], u_first, lower
         if t_in < 0.0:
@@ -1076,7 +1095,11 @@ def solve_intervals(F, E, t_max, first_only):
         t_in, in_hi = _entry_estimate(F, E, t_in, lower, t_max)
     else:  # not provably separate at the start: a contact at 0, or (code 0) inside the rounding band
         t_in = lower = 0.0
-        in_hi = 0.0 if status0 == -1 else _entry_upper(F, E, 0.0, 0.0, t_max)
+        if status0 == -1:
+            in_hi = 0.0
+        else:
+            gmax, _, slope = _state_and_slope(F, 0.0, np.empty(F.shape[1]))
+            in_hi = _entry_upper(F, E, 0.0, 0.0, t_max, gmax, slope)[0]
     for _ in range(MAX_INTERVALS):
         if first_only:  # no end of the interval is looked for: its bracket is the estimate itself
             out[0, 0] = out[0, 1] = t_in
@@ -1108,7 +1131,7 @@ def solve_intervals(F, E, t_max, first_only):
             return status0, out[:k], bounds[:k], u_first, out_lo
         if t_sep >= t_max:
             return status0, out[:k], bounds[:k], u_first, -1.0
-        t_in, _, lower, certified = shoot_first_contact(F, E, t_sep, t_max)
+        t_in, _, lower, certified = shoot_first_contact(F, E, t_sep, t_max, state(F, t_sep)[1])
         if not certified:
             return status0, out[:k], bounds[:k], u_first, lower
         if t_in < 0.0:
@@ -1269,8 +1292,9 @@ def _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating):
 def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """Exact CCD of two ellipsoids that each move between two poses.
 
-    Returns (status at start, intervals (k, 2), point, normal, certified,
-    bracket_lo, bracket_hi); see :func:`solve_intervals`.  ``affine_a`` and
+    Returns (status at start, intervals (k, 2), bounds (k, 4), point,
+    normal, reached, precision tier, certified, bracket_lo, bracket_hi); see
+    :func:`solve_intervals` and :func:`verdict`.  ``affine_a`` and
     ``affine_b`` pick each body's motion model between its poses (rigid:
     centre and quaternion lerp; affine: centre and shape matrix lerp; a
     static body is either with equal poses).  Quaternions must be unit and
@@ -1285,13 +1309,9 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     translating = same_orientation(qa0, qa1) and same_orientation(qb0, qb1)
     # thin bodies are taken in A's frame (A's quadric diagonal); for the others it buys nothing
     framed = ra.max() > THIN * ra.min() or rb.max() > THIN * rb.min()
+    frame_quaternion, origin = qa0, pa0  # A's frame at t = 0, where the answer goes back to
     if framed:
-        frame = quat_to_matrix(qa0)
-        origin = pa0
         qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1 = _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating)
-    else:
-        frame = np.eye(3)
-        origin = np.zeros(3)
     zero = np.zeros(3)
     if translating:  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
@@ -1314,33 +1334,39 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
         else:
             rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
     err = np.empty((2, 4, 4))
-    err[0] = pose_side_errors(ra, length, zero, zero, translating and framed)
-    err[1] = pose_side_errors(rb, length, (pb0 - pa0) / length, (pb1 - pa1) / length, False)
+    pose_side_errors(ra, length, 0.0, translating and framed, err[0])
+    pose_side_errors(rb, length, centre_extent(pb0, pb1, pa0, pa1, length), False, err[1])
     status0, intervals, bounds, u, reached, tier = solve_balanced(Pp, Up, sp, err, t_max, first_only)
     point = np.zeros(3)
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
         t = intervals[0, 0]
         p, n = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
-        local = np.empty(3)
         for m in range(3):
-            local[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
-        for m in range(3):
-            point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
-            normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
-    return status0, intervals, bounds, point, normal, reached, tier
+            point[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
+        if framed:  # back from A's frame at t = 0
+            frame = quat_to_matrix(frame_quaternion)
+            local = point.copy()
+            for m in range(3):
+                point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
+                normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
+        else:
+            normal[:] = n
+    certified, lo, hi = verdict(intervals, bounds, reached, t_max)
+    return status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi
 
 
 @_jit
 def balanced_F(Pp, Up, sp, err):
-    """Balance the pencil in place and build F: (F, D), D the 4x4 bounds of the balanced entries' errors
-    (``err`` (2, 4, 4): each side's before balancing), for :func:`error_bound_global` or
-    :func:`error_bound_tight`."""
+    """Balance the pencil in place and build F: (F, D, M), D the 4x4 bounds of the balanced entries' errors
+    (``err`` (2, 4, 4): each side's before balancing) and M their coefficient maxima, for
+    :func:`error_bound_global` or :func:`error_bound_tight`."""
     inv = np.empty(2)
     inv[0] = balance_side(Pp, Up, sp, 0)
     inv[1] = balance_side(Pp, Up, sp, 1)
-    D = entry_errors_balanced(err, inv, _entry_maxima(Pp, Up, sp))
-    return F_from_pencil(Pp, Up, sp), D
+    M = _entry_maxima(Pp, Up, sp)
+    D = entry_errors_balanced(err, inv, M)
+    return F_from_pencil(Pp, Up, sp), D, M
 
 
 @_jit
@@ -1351,8 +1377,8 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     ``err`` (2, 4, 4): bounds of each side's entry errors before balancing.
     Returns :func:`solve_intervals`'s values and the precision tier used.
     """
-    F, D = balanced_F(Pp, Up, sp, err)
-    E = error_bound_global(F, Pp, Up, sp, D)
+    F, D, M = balanced_F(Pp, Up, sp, err)
+    E = error_bound_global(F, Pp, Up, sp, D, M)
     status0, intervals, bounds, u, reached = solve_intervals(F, E, t_max, first_only)
     certified, _, _ = verdict(intervals, bounds, reached, t_max)
     if certified:
@@ -1366,9 +1392,8 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
 def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it:
     (status at start, intervals, point, normal, certified, bracket_lo, bracket_hi), see :func:`verdict`."""
-    status0, intervals, bounds, point, normal, reached, _ = two_pose_pair(
+    status0, intervals, _, point, normal, _, _, certified, lo, hi = two_pose_pair(
         affine, affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
-    certified, lo, hi = verdict(intervals, bounds, reached, t_max)
     return status0, intervals, point, normal, certified, lo, hi
 
 
@@ -1395,12 +1420,17 @@ def rigid_first_contact(radii, positions, quaternions, t_max, touch):
 
 
 def _check_pair(a, motion_a, b, motion_b):
+    if type(a) is type(b) is Ellipsoid and type(motion_a) in _TWO_POSE and type(motion_b) in _TWO_POSE:
+        return  # the common case, without the abstract base class's isinstance
     for name, e in (("a", a), ("b", b)):
         if not isinstance(e, Ellipsoid):
             raise ValueError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
     for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
         if not isinstance(m, Motion):
             raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
+
+
+_TWO_POSE = (Static, Rigid, Affine)
 
 
 def _two_pose_model(motion):
@@ -1444,9 +1474,11 @@ def time_pieces(factors, t_max):
     return edges
 
 
-@dataclass(frozen=True)
-class PairSolution:
-    """Everything the solver knows about one pair over [0, t_max] (see :func:`solve_motions`)."""
+class PairSolution(NamedTuple):
+    """Everything the solver knows about one pair over [0, t_max] (see :func:`solve_motions`).
+
+    A named tuple: built once per query, so its construction is kept cheap.
+    """
 
     status_at_start: int
     intervals: np.ndarray      # (k, 2) maximal non-separate intervals, normalised time
@@ -1594,7 +1626,7 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
     if len(intervals) and solution.status_at_start == 1 and intervals[0, 0] != solution.intervals[0, 0]:
         point, normal = pair.touch(float(intervals[0, 0]))
     lo, hi = (bounds[0, 0], bounds[0, 1]) if len(intervals) else solution.bracket
-    return replace(solution, intervals=intervals, bounds=bounds, point=point, normal=normal, certified=certified,
+    return solution._replace(intervals=intervals, bounds=bounds, point=point, normal=normal, certified=certified,
                    bracket=(float(lo), float(hi)), precision=RATIONAL)
 
 
@@ -1608,9 +1640,9 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
     """
     pair = _ExactPair(a, motion_a, b, motion_b)
     code = pair.status(Fraction(0))
-    solution = replace(solution, precision=RATIONAL)
+    solution = solution._replace(precision=RATIONAL)
     if code != 1:
-        return replace(solution, status_at_start=code)
+        return solution._replace(status_at_start=code)
     end = Fraction(float(solution.intervals[0, 1])) if len(solution.intervals) else Fraction(0)
     end = max(end, Fraction(TOUCH_SPAN))
     lo = hi = None
@@ -1622,7 +1654,7 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
         lo = probe
     found = None if hi is None else pair.separation_change(lo or Fraction(0), hi, True)
     if found is None:  # no contact the exact status can find near t = 0: the double's first interval is not confirmed
-        return replace(solution, status_at_start=1, intervals=solution.intervals[1:], certified=False,
+        return solution._replace(status_at_start=1, intervals=solution.intervals[1:], certified=False,
                        bracket=(0.0, float(end)), point=None, normal=None)
     t = found[0]
     intervals = solution.intervals.copy()
@@ -1632,7 +1664,7 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
         intervals[0, 1] = bounds[0, 2] = bounds[0, 3] = t
     certified, _, _ = verdict(intervals, bounds, solution.reached, 1.0)
     point, normal = pair.touch(t)
-    return replace(solution, status_at_start=1, intervals=intervals, bounds=bounds, point=point, normal=normal,
+    return solution._replace(status_at_start=1, intervals=intervals, bounds=bounds, point=point, normal=normal,
                    bracket=(t, t), certified=bool(certified))
 
 
@@ -1648,9 +1680,8 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     if pose_a is None or pose_b is None:
         solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
     else:
-        status0, intervals, bounds, point, normal, reached, tier = two_pose_pair(
+        status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi = two_pose_pair(
             pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
-        certified, lo, hi = verdict(intervals, bounds, reached, t_max)
         touch = status0 == 1 and len(intervals) > 0
         solution = PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
                                 bool(certified), (float(lo), float(hi)), bounds, float(reached), int(tier))
@@ -1661,9 +1692,8 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     return solution
 
 
-@dataclass(frozen=True)
-class Contact:
-    """First contact of two moving ellipsoids.
+class Contact(NamedTuple):
+    """First contact of two moving ellipsoids (a named tuple, as dm_env's TimeStep).
 
     ``time`` is normalised to [0, 1]; ``point`` (world) and ``normal`` (unit,
     outward from the first ellipsoid) describe the touch; they are None when

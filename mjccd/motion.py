@@ -297,29 +297,36 @@ def gamma(k):
 
 
 @_jit
-def pose_side_errors(radii, length, c0, c1, identity):
+def centre_extent(p0, p1, origin0, origin1, length):
+    """C of :func:`pose_side_errors`: the larger |centre - origin|_1 / length at the two ends."""
+    c0 = abs(p0[0] - origin0[0]) + abs(p0[1] - origin0[1]) + abs(p0[2] - origin0[2])
+    c1 = abs(p1[0] - origin1[0]) + abs(p1[1] - origin1[1]) + abs(p1[2] - origin1[2])
+    return max(c0, c1) / length
+
+
+@_jit
+def pose_side_errors(radii, length, C, identity, e):
     """Error bounds (4x4, plain-coefficient units) of a two-pose side built by :func:`rigid_scaled_into`,
-    :func:`translation_scaled_into` or :func:`quadric_affine` in the frame scaled by ``length``.
+    :func:`translation_scaled_into` or :func:`quadric_affine` in the frame scaled by ``length``, into ``e``.
 
     With d_k = (length / r_k)^2, S = sum d_k and C the largest |centre|_1 at
-    the two ends: every rotation coefficient is at most |q|^2 <= 1, so P's
+    the two ends (:func:`centre_extent`): every rotation coefficient is at most |q|^2 <= 1, so P's
     terms add up to at most S, U's to S C and s's to S C^2 + 1; a few dozen
     roundings each.  ``identity``: the side's orientation is exactly the
     identity at both ends and its centre the origin (A in its own frame):
     P = diag(d) (d rounded), U = 0 and s = -1 exactly.
     """
-    e = np.zeros((4, 4))
     d0 = length / radii[0]
     d1 = length / radii[1]
     d2 = length / radii[2]
     d0, d1, d2 = d0 * d0, d1 * d1, d2 * d2
     if identity:
+        e[:, :] = 0.0
         e[0, 0] = 3.0 * EPS * d0
         e[1, 1] = 3.0 * EPS * d1
         e[2, 2] = 3.0 * EPS * d2
         return e
     S = d0 + d1 + d2
-    C = max(abs(c0[0]) + abs(c0[1]) + abs(c0[2]), abs(c1[0]) + abs(c1[1]) + abs(c1[2]))
     for i in range(3):
         for j in range(3):
             e[i, j] = gamma(80) * S
@@ -598,7 +605,8 @@ class _TwoPoses:
     def quadric_bounded_on(self, radii, t0, t1):
         """The centre lerp in this frame (unit 1): :func:`pose_side_errors`, plus the restriction's rounding."""
         radii = np.asarray(radii, float)
-        err = pose_side_errors(radii, 1.0, self.position0, self.position1, False)
+        C = centre_extent(self.position0, self.position1, np.zeros(3), np.zeros(3), 1.0)
+        err = pose_side_errors(radii, 1.0, C, False, np.empty((4, 4)))
         return (*self.quadric_on(radii, t0, t1), 1.25 * err)  # restriction: gamma_12 more than gamma_80 and up
 
     def _exact_pose_at(self, t):

@@ -908,12 +908,21 @@ def touching_point(A, B, u):
     ``u`` is the double root of det((1-u)A + uB) in (0, 1); the contact point
     spans the kernel of (1-u)A + uB (the thesis' Theorem 4.4 in u form).
     """
-    X = null_vector((1.0 - u) * A + u * B)
-    p = X[:3] / X[3]
+    M = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            M[i, j] = (1.0 - u) * A[i, j] + u * B[i, j]
+    X = null_vector(M)
+    p = np.empty(3)
     n = np.empty(3)
     for i in range(3):
+        p[i] = X[i] / X[3]
+    for i in range(3):
         n[i] = A[i, 0] * p[0] + A[i, 1] * p[1] + A[i, 2] * p[2] + A[i, 3]
-    return p, n / np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    for i in range(3):
+        n[i] /= norm
+    return p, n
 
 
 @_jit

@@ -22,7 +22,7 @@ def _pair(a, motion_a, b, motion_b):
     length = float(max(a.radii.max(), b.radii.max()))
     pencil, err, _ = ccd.prepare_pair(*motion_a.quadric_bounded_on(a.radii, 0.0, 1.0),
                                       *motion_b.quadric_bounded_on(b.radii, 0.0, 1.0), length)
-    F, D = ccd.balanced_F(*pencil, err)
+    F, D, _ = ccd.balanced_F(*pencil, err)
     E = ccd.error_bound_tight(F, *pencil, D)
     return F, E
 

@@ -1,18 +1,20 @@
 """Input checks shared by the Python layer: every error names the field and the problem."""
 import numpy as np
 
+from mjccd.errors import InputError
+
 
 def array(value, shape, field):
     """A finite float64 array of the given shape (None in ``shape`` = any length)."""
     try:
         arr = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"{field}: expected numbers, got {value!r}") from None
+        raise InputError(f"{field}: expected numbers, got {value!r}") from None
     if arr.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, arr.shape)):
         want = "x".join("N" if s is None else str(s) for s in shape) or "scalar"
-        raise ValueError(f"{field}: expected shape {want}, got {arr.shape}")
+        raise InputError(f"{field}: expected shape {want}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{field}: contains NaN or infinity")
+        raise InputError(f"{field}: contains NaN or infinity")
     return np.ascontiguousarray(arr)
 
 
@@ -21,9 +23,9 @@ def scalar(value, field):
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{field}: expected a number, got {value!r}") from None
+        raise InputError(f"{field}: expected a number, got {value!r}") from None
     if not np.isfinite(x):
-        raise ValueError(f"{field}: must be finite, got {x}")
+        raise InputError(f"{field}: must be finite, got {x}")
     return x
 
 
@@ -36,7 +38,7 @@ def radii(value, field):
     """Three finite, strictly positive radii."""
     r = vector(value, 3, field)
     if np.any(r <= 0.0):
-        raise ValueError(f"{field}: radii must be positive, got {r.tolist()}")
+        raise InputError(f"{field}: radii must be positive, got {r.tolist()}")
     return r
 
 
@@ -45,7 +47,7 @@ def radii_array(value, field):
     r = array(value, (None, 3), field)
     bad = np.nonzero(np.any(r <= 0.0, axis=1))[0]
     if len(bad):
-        raise ValueError(f"{field}[{bad[0]}]: radii must be positive, got {r[bad[0]].tolist()}")
+        raise InputError(f"{field}[{bad[0]}]: radii must be positive, got {r[bad[0]].tolist()}")
     return r
 
 
@@ -54,7 +56,7 @@ def quaternion(value, field):
     q = vector(value, 4, field)
     n = float(np.sqrt(q @ q))
     if n < 1e-12:
-        raise ValueError(f"{field}: zero quaternion (norm {n:.3g})")
+        raise InputError(f"{field}: zero quaternion (norm {n:.3g})")
     return q / n
 
 
@@ -64,7 +66,7 @@ def pose_array(value, field, n=None):
     norms = np.sqrt(np.sum(poses[:, 3:] ** 2, axis=1))
     bad = np.nonzero(norms < 1e-12)[0]
     if len(bad):
-        raise ValueError(f"{field}[{bad[0]}]: zero quaternion")
+        raise InputError(f"{field}[{bad[0]}]: zero quaternion")
     out = poses.copy()
     out[:, 3:] /= norms[:, None]
     return out
@@ -75,11 +77,11 @@ def polynomial(value, field):
     try:
         p = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"{field}: expected a list of coefficients, got {value!r}") from None
+        raise InputError(f"{field}: expected a list of coefficients, got {value!r}") from None
     if p.ndim != 1 or p.size == 0:
-        raise ValueError(f"{field}: expected a non-empty list of coefficients")
+        raise InputError(f"{field}: expected a non-empty list of coefficients")
     if not np.all(np.isfinite(p)):
-        raise ValueError(f"{field}: contains NaN or infinity")
+        raise InputError(f"{field}: contains NaN or infinity")
     return p
 
 
@@ -88,7 +90,7 @@ def time_bound(value, field):
     try:
         t = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{field}: expected a number in [0, 1], got {value!r}") from None
+        raise InputError(f"{field}: expected a number in [0, 1], got {value!r}") from None
     if not (0.0 <= t <= 1.0):
-        raise ValueError(f"{field}: must lie in [0, 1], got {t}")
+        raise InputError(f"{field}: must lie in [0, 1], got {t}")
     return t

@@ -22,6 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mjccd.errors import InputError
+
 # CMU ASF length unit: 1/0.45 inch (about 0.0564 m).
 CMU_SCALE = 0.0254 / 0.45
 # BVH (Y up) -> MuJoCo (Z up): (x, y, z) -> (z, x, y), a 120 degree turn about (1, 1, 1).
@@ -54,7 +56,7 @@ LIMB_RADII = (
 DEFAULT_RADIUS = 0.04
 
 
-class BVHError(ValueError):
+class BVHError(InputError):
     """A BVH file that cannot be read; the message names the file and line."""
 
 

@@ -6,6 +6,7 @@ A bad case never stops the others: its result carries ``"error": "<case id>:
 import numpy as np
 
 from mjccd.ccd import solve_pair
+from mjccd.errors import InputError
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Rational, Rigid,
                           Slide, Static)
 from mjccd.quadric import Ellipsoid
@@ -13,7 +14,7 @@ from mjccd.quadric import Ellipsoid
 FORMAT_VERSION = 1
 
 
-class CaseError(ValueError):
+class CaseError(InputError):
     """A case that cannot be solved; the message names the field."""
 
 

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mjccd.errors import InputError
+
 MOTIONS = ("rigid", "affine", "chain")
 BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
 # filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
@@ -31,7 +33,7 @@ COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlap
                  "colliding", "pruned", "uncertain")
 
 
-class ReplayError(ValueError):
+class ReplayError(InputError):
     """Bad replay input: the message names the file or field and what is wrong."""
 
 

@@ -1,0 +1,23 @@
+"""The exceptions mjccd raises on purpose: every message names the argument, field or file.
+
+``MjccdError`` is the common base, so a caller can catch everything the
+library refuses in one clause; the subclasses are also ``ValueError``,
+``TypeError`` or ``OSError``, so code written against the built-in
+exceptions keeps working.
+"""
+
+
+class MjccdError(Exception):
+    """Base of every error mjccd raises about its inputs or outputs."""
+
+
+class InputError(MjccdError, ValueError):
+    """A value that is not acceptable: out of range, wrong shape, NaN, inconsistent."""
+
+
+class InputTypeError(MjccdError, TypeError):
+    """An argument of the wrong kind (a string where a number is expected, ...)."""
+
+
+class OutputError(MjccdError, OSError):
+    """An output that would overwrite something it must not, or that cannot be written."""

@@ -31,6 +31,7 @@ import numpy as np
 
 from mjccd import _validate, exact
 from mjccd import bernstein as bz
+from mjccd.errors import InputTypeError
 from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, centre_extent, gamma, pose_side_errors, quadric_affine,
                           quadric_at, rigid_scaled_into, translation_scaled_into)
 from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
@@ -1424,10 +1425,10 @@ def _check_pair(a, motion_a, b, motion_b):
         return  # the common case, without the abstract base class's isinstance
     for name, e in (("a", a), ("b", b)):
         if not isinstance(e, Ellipsoid):
-            raise ValueError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
+            raise InputTypeError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
     for name, m in (("motion_a", motion_a), ("motion_b", motion_b)):
         if not isinstance(m, Motion):
-            raise ValueError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
+            raise InputTypeError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
 
 
 _TWO_POSE = (Static, Rigid, Affine)

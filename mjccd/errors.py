@@ -15,8 +15,11 @@ class InputError(MjccdError, ValueError):
     """A value that is not acceptable: out of range, wrong shape, NaN, inconsistent."""
 
 
-class InputTypeError(MjccdError, TypeError):
-    """An argument of the wrong kind (a string where a number is expected, ...)."""
+class InputTypeError(MjccdError, TypeError, ValueError):
+    """An argument of the wrong kind (a string where a number is expected, ...).
+
+    Also a ValueError, as every input error was before these classes existed.
+    """
 
 
 class OutputError(MjccdError, OSError):

@@ -18,6 +18,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from mjccd.errors import InputError
+
 SEPARATE, TOUCHING, OVERLAPPING = 1, 0, -1
 
 
@@ -62,7 +64,7 @@ def quadric_exact(radii, position, quaternion):
     w, x, y, z = (_fr(c) for c in quaternion)
     n = w * w + x * x + y * y + z * z
     if n == 0:
-        raise ValueError("quaternion: zero quaternion")
+        raise InputError("quaternion: zero quaternion")
     R = [[(w * w + x * x - y * y - z * z) / n, 2 * (x * y - w * z) / n, 2 * (x * z + w * y) / n],
          [2 * (x * y + w * z) / n, (w * w - x * x + y * y - z * z) / n, 2 * (y * z - w * x) / n],
          [2 * (x * z - w * y) / n, 2 * (y * z + w * x) / n, (w * w - x * x - y * y + z * z) / n]]
@@ -255,12 +257,12 @@ def static_status_exact(A, B):
     are double, that is when gcd(P, P') has degree 2 and two distinct roots.
     """
     if len(A) != 4 or len(B) != 4 or any(len(row) != 4 for row in A) or any(len(row) != 4 for row in B):
-        raise ValueError("A and B must be 4x4")
+        raise InputError("A and B must be 4x4")
     c = _pencil_form(_integer_matrix(A), _integer_matrix(B))
     if not any(c):
-        raise ValueError("degenerate pencil: det((1-u)A + uB) vanishes identically")
+        raise InputError("degenerate pencil: det((1-u)A + uB) vanishes identically")
     if not (c[0] < 0 and c[4] < 0):  # g(0) = det A, g(1) = det B, times positive factors
-        raise ValueError("not two ellipsoids: det A and det B must be negative")
+        raise InputError("not two ellipsoids: det A and det B must be negative")
     verdict = _bisect_status(c)
     if verdict is not None:
         return verdict

@@ -34,6 +34,7 @@ import numba
 import numpy as np
 
 from mjccd import bernstein as bz
+from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -479,7 +480,7 @@ def moving_sphere(ellipsoid, motion):
     from mjccd import motion as mo
 
     if not isinstance(ellipsoid, Ellipsoid):
-        raise ValueError(f"ellipsoid: expected an mjccd.Ellipsoid, got {type(ellipsoid).__name__}")
+        raise InputTypeError(f"ellipsoid: expected an mjccd.Ellipsoid, got {type(ellipsoid).__name__}")
     r = float(ellipsoid.radii.max())
     if isinstance(motion, (mo.Rigid, mo.Affine)):
         return motion.position0.copy(), motion.position1.copy(), r
@@ -490,7 +491,7 @@ def moving_sphere(ellipsoid, motion):
         return motion.start[:, 3].copy(), motion.end[:, 3].copy(), r * float(scale)
     if isinstance(motion, (mo.Chain, mo.Rational)):
         return _rational_centre_sphere(*motion._w, r)
-    raise ValueError(f"motion: no bounding sphere for motion kind {getattr(motion, 'kind', type(motion).__name__)!r}")
+    raise InputError(f"motion: no bounding sphere for motion kind {getattr(motion, 'kind', type(motion).__name__)!r}")
 
 
 def _rational_centre_sphere(G, h, g, r):

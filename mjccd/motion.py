@@ -23,6 +23,7 @@ import numpy as np
 
 from mjccd import _validate, exact
 from mjccd import bernstein as bz
+from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import quat_to_matrix
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -441,15 +442,15 @@ def _nonvanishing(poly_power, field, bernstein=False):
     if not _keeps_sign(c, 1e-12 * np.abs(c).max()):
         ts = np.linspace(0.0, 1.0, 1001)
         vals = np.abs([bz.evaluate(c, t) for t in ts])
-        raise ValueError(f"{field}: vanishes on [0, 1] (near t = {ts[int(np.argmin(vals))]:.6g})")
+        raise InputError(f"{field}: vanishes on [0, 1] (near t = {ts[int(np.argmin(vals))]:.6g})")
 
 
 def _pose_from_json(d, field):
     if not isinstance(d, dict):
-        raise ValueError(f"{field}: expected an object with position and quaternion")
+        raise InputError(f"{field}: expected an object with position and quaternion")
     for key in ("position", "quaternion"):
         if key not in d:
-            raise ValueError(f"{field}.{key}: missing")
+            raise InputError(f"{field}.{key}: missing")
     return (_validate.vector(d["position"], 3, f"{field}.position"),
             _validate.quaternion(d["quaternion"], f"{field}.quaternion"))
 
@@ -717,11 +718,11 @@ class Rational(_WMotion):
     def __init__(self, rotation, rotation_denominator, translation, translation_denominator=(1.0,)):
         if not isinstance(rotation, (list, tuple, np.ndarray)) or len(rotation) != 3 \
                 or any(not isinstance(r, (list, tuple, np.ndarray)) or len(r) != 3 for r in rotation):
-            raise ValueError("rotation: expected a 3x3 array of polynomials")
+            raise InputError("rotation: expected a 3x3 array of polynomials")
         rot = [[_validate.polynomial(rotation[i][j], f"rotation[{i}][{j}]") for j in range(3)] for i in range(3)]
         rd = _validate.polynomial(rotation_denominator, "rotation_denominator")
         if not isinstance(translation, (list, tuple, np.ndarray)) or len(translation) != 3:
-            raise ValueError("translation: expected 3 polynomials")
+            raise InputError("translation: expected 3 polynomials")
         tr = [_validate.polynomial(translation[i], f"translation[{i}]") for i in range(3)]
         vd = _validate.polynomial(translation_denominator, "translation_denominator")
         _nonvanishing(rd, "rotation_denominator")
@@ -768,12 +769,12 @@ class Rational(_WMotion):
                 if i == j:
                     acc = P.polysub(acc, rd2)
                 if np.abs(acc).max() > 1e-9 * scale:
-                    raise ValueError(f"rotation: not orthogonal (row {i} . row {j} differs from "
+                    raise InputError(f"rotation: not orthogonal (row {i} . row {j} differs from "
                                      f"{'the denominator squared' if i == j else '0'} by "
                                      f"{np.abs(acc).max():.3g})")
         R0 = np.array([[P.polyval(0.0, rot[i][j]) for j in range(3)] for i in range(3)]) / P.polyval(0.0, rd)
         if np.linalg.det(R0) < 0.0:
-            raise ValueError("rotation: is a reflection (determinant -1), not a rotation")
+            raise InputError("rotation: is a reflection (determinant -1), not a rotation")
 
 
 
@@ -796,7 +797,7 @@ def _unit_axis(axis):
     axis = _validate.vector(axis, 3, "axis")
     n = float(np.linalg.norm(axis))
     if n < 1e-12:
-        raise ValueError("axis: zero vector")
+        raise InputError("axis: zero vector")
     return axis / n
 
 
@@ -807,7 +808,7 @@ class Hinge:
         self.axis = _unit_axis(axis)
         for name, a in (("angle[0]", angle0), ("angle[1]", angle1)):
             if not np.isfinite(a) or abs(a) >= np.pi:
-                raise ValueError(f"{name}: hinge angle must be finite with |angle| < pi, got {a}")
+                raise InputError(f"{name}: hinge angle must be finite with |angle| < pi, got {a}")
         self.angle0, self.angle1 = float(angle0), float(angle1)
 
     def w(self):
@@ -862,11 +863,11 @@ class Chain(_WMotion):
     def __init__(self, elements):
         elements = list(elements)
         if not elements:
-            raise ValueError("elements: a chain needs at least one element")
+            raise InputError("elements: a chain needs at least one element")
         W = None
         for k, el in enumerate(elements):
             if not hasattr(el, "w"):
-                raise ValueError(f"elements[{k}]: not a chain element: {el!r}")
+                raise InputTypeError(f"elements[{k}]: not a chain element: {el!r}")
             Wk = el.w()
             W = Wk if W is None else w_compose(*W, *Wk)
         self.elements = elements

@@ -28,6 +28,7 @@ import numba
 import numpy as np
 
 from mjccd import _validate, exact
+from mjccd.errors import InputError
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # small hot-path helpers
@@ -1083,7 +1084,7 @@ def static_status_many(radii_a, poses_a, radii_b, poses_b):
     pa = _validate.pose_array(poses_a, "poses_a", len(ra))
     pb = _validate.pose_array(poses_b, "poses_b", len(rb))
     if len(ra) != len(rb):
-        raise ValueError(f"radii_b: expected {len(ra)} rows like radii_a, got {len(rb)}")
+        raise InputError(f"radii_b: expected {len(ra)} rows like radii_a, got {len(rb)}")
     out = np.empty(len(ra), dtype=np.int64)
     static_status_batch(ra, np.ascontiguousarray(pa[:, :3]), np.ascontiguousarray(pa[:, 3:]),
                         rb, np.ascontiguousarray(pb[:, :3]), np.ascontiguousarray(pb[:, 3:]), out)
@@ -1102,7 +1103,7 @@ def contact_point(a, pose_a, b, pose_b):
     g, noise = pencil_quartic(A, B)
     gmax, u = quartic_max(g)
     if status_from_max(gmax, noise) != 0:
-        raise ValueError("ellipsoids are not touching: status is "
+        raise InputError("ellipsoids are not touching: status is "
                          + STATUS_NAMES[int(status_from_max(gmax, noise))])
     p, n = touching_point(A, B, u)
     return p, n
@@ -1114,5 +1115,5 @@ def separating_plane(a, pose_a, b, pose_b):
     B = b.matrix(*pose_b)
     ok, plane, pa, pb = separating_plane_matrices(A, B)
     if not ok:
-        raise ValueError("ellipsoids are not separate: no separating plane")
+        raise InputError("ellipsoids are not separate: no separating plane")
     return SeparatingPlane(plane[:3].copy(), float(plane[3]), pa, pb)

@@ -12,6 +12,8 @@ is exactly a set of moving rational patches.
 """
 import numpy as np
 
+from mjccd.errors import InputError
+
 from .primitives import Patch
 
 _R = np.sqrt(0.5)
@@ -33,9 +35,9 @@ def unit_octant():
 def _affine(value, field):
     m = np.array(value, dtype=np.float64)
     if m.shape != (3, 4):
-        raise ValueError(f"`{field}`: expected a 3x4 matrix [L|v], got shape {m.shape}")
+        raise InputError(f"`{field}`: expected a 3x4 matrix [L|v], got shape {m.shape}")
     if not np.all(np.isfinite(m)):
-        raise ValueError(f"`{field}`: contains NaN or infinity")
+        raise InputError(f"`{field}`: contains NaN or infinity")
     return m
 
 
@@ -52,9 +54,9 @@ def ellipsoid_patches(radii, start, end=None):
     """
     r = np.array(radii, dtype=np.float64)
     if r.shape != (3,):
-        raise ValueError(f"`radii`: expected 3 values, got shape {r.shape}")
+        raise InputError(f"`radii`: expected 3 values, got shape {r.shape}")
     if not np.all(np.isfinite(r)) or np.any(r <= 0.0):
-        raise ValueError(f"`radii`: must be finite and positive, got {r.tolist()}")
+        raise InputError(f"`radii`: must be finite and positive, got {r.tolist()}")
     m0 = _affine(start, "start")
     m1 = m0 if end is None else _affine(end, "end")
     pts, w = unit_octant()

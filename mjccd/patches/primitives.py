@@ -22,6 +22,8 @@ from math import factorial
 
 import numpy as np
 
+from mjccd.errors import InputError
+
 KINDS = ("point", "curve", "triangle", "quad")
 KIND_CODE = {name: code for code, name in enumerate(KINDS)}
 
@@ -30,16 +32,16 @@ def _finite_array(value, field):
     try:
         arr = np.array(value, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ValueError(f"`{field}`: expected an array of numbers, got {value!r}") from None
+        raise InputError(f"`{field}`: expected an array of numbers, got {value!r}") from None
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"`{field}`: contains NaN or infinity")
+        raise InputError(f"`{field}`: contains NaN or infinity")
     return arr
 
 
 def _check_points(value, shape, field):
     arr = _finite_array(value, field)
     if arr.shape != shape:
-        raise ValueError(f"`{field}`: expected shape {shape}, got {arr.shape}")
+        raise InputError(f"`{field}`: expected shape {shape}, got {arr.shape}")
     return arr
 
 
@@ -47,7 +49,7 @@ def _triangle_degree(count, field):
     for n in (1, 2, 3):
         if (n + 1) * (n + 2) // 2 == count:
             return n
-    raise ValueError(
+    raise InputError(
         f"`{field}`: a triangular patch of degree 1, 2 or 3 has 3, 6 or 10 control points, "
         f"got {count}")
 
@@ -80,7 +82,7 @@ class Patch:
     def _build(cls, kind, degree, p0, p1, velocities, weights, shape, field):
         p0 = _check_points(p0, shape, f"{field}.points_t0")
         if p1 is not None and velocities is not None:
-            raise ValueError(f"`{field}`: give either `points_t1` or `velocities`, not both")
+            raise InputError(f"`{field}`: give either `points_t1` or `velocities`, not both")
         if p1 is not None:
             p1 = _check_points(p1, shape, f"{field}.points_t1")
         elif velocities is not None:
@@ -93,12 +95,12 @@ class Patch:
         else:
             w = _finite_array(weights, f"{field}.weights")
             if w.shape != shape[:-1]:
-                raise ValueError(
+                raise InputError(
                     f"`{field}.weights`: expected shape {shape[:-1]}, got {w.shape}")
             w = w.reshape(count)
             bad = np.nonzero(w <= 0.0)[0]
             if len(bad):
-                raise ValueError(
+                raise InputError(
                     f"`{field}.weights`: weights must be positive (the convex-hull property "
                     f"needs it), got {w[bad[0]]!r} at index {int(bad[0])}")
         p0 = np.ascontiguousarray(p0.reshape(count, 3))
@@ -118,7 +120,7 @@ class Patch:
         """A moving (rational) Bézier curve of degree 1-3; points: (n+1, 3)."""
         arr = _finite_array(points_t0, "curve.points_t0")
         if arr.ndim != 2 or arr.shape[1] != 3 or not 2 <= arr.shape[0] <= 4:
-            raise ValueError(
+            raise InputError(
                 f"`curve.points_t0`: expected shape (n+1, 3) with n in 1..3, got {arr.shape}")
         n = arr.shape[0] - 1
         return cls._build("curve", (n,), arr, points_t1, velocities, weights, (n + 1, 3),
@@ -129,7 +131,7 @@ class Patch:
         """A moving triangular (rational) Bézier patch of degree 1-3; points: (N, 3)."""
         arr = _finite_array(points_t0, "triangle.points_t0")
         if arr.ndim != 2 or arr.shape[1] != 3:
-            raise ValueError(f"`triangle.points_t0`: expected shape (N, 3), got {arr.shape}")
+            raise InputError(f"`triangle.points_t0`: expected shape (N, 3), got {arr.shape}")
         n = _triangle_degree(arr.shape[0], "triangle.points_t0")
         return cls._build("triangle", (n,), arr, points_t1, velocities, weights,
                           (arr.shape[0], 3), "triangle")
@@ -140,7 +142,7 @@ class Patch:
         arr = _finite_array(points_t0, "quad.points_t0")
         if (arr.ndim != 3 or arr.shape[2] != 3 or not 2 <= arr.shape[0] <= 4
                 or not 2 <= arr.shape[1] <= 4):
-            raise ValueError(
+            raise InputError(
                 f"`quad.points_t0`: expected shape (n+1, m+1, 3) with n, m in 1..3, "
                 f"got {arr.shape}")
         n, m = arr.shape[0] - 1, arr.shape[1] - 1

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mjccd.errors import InputError
+
 from . import _kernels as K
 from .primitives import KIND_CODE, Patch, corner_indices, subdivision_matrices
 from .solver import (DEFAULT_DELTA, DEFAULT_MARGIN, DEFAULT_TIME_MARGIN, METHODS, STATUS,
@@ -34,7 +36,7 @@ def vertex_face(vertex_t0, face_t0, vertex_t1, face_t1, **options):
     f0 = np.asarray(face_t0, dtype=np.float64)
     f1 = np.asarray(face_t1, dtype=np.float64)
     if f0.shape != (3, 3) or f1.shape != (3, 3):
-        raise ValueError(f"`face_t0`/`face_t1`: expected shape (3, 3), got "
+        raise InputError(f"`face_t0`/`face_t1`: expected shape (3, 3), got "
                          f"{f0.shape} and {f1.shape}")
     tri = Patch.triangle(f0[list(_FACE_ORDER)], f1[list(_FACE_ORDER)])
     return first_contact(point, tri, **options)
@@ -62,9 +64,9 @@ def query_primitives(kind, vertices):
     """Kernel rows (Q, 1, N, 7) of both sides for (Q, 8, 3) query vertices (file order)."""
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 3 or v.shape[1:] != (8, 3):
-        raise ValueError(f"`vertices`: expected shape (Q, 8, 3), got {v.shape}")
+        raise InputError(f"`vertices`: expected shape (Q, 8, 3), got {v.shape}")
     if not np.all(np.isfinite(v)):
-        raise ValueError("`vertices`: contains NaN or infinity")
+        raise InputError("`vertices`: contains NaN or infinity")
     if kind == "vf":
         a = _homogeneous(v[:, 0:1], v[:, 4:5])
         face = [1 + k for k in _FACE_ORDER]
@@ -73,7 +75,7 @@ def query_primitives(kind, vertices):
         a = _homogeneous(v[:, 0:2], v[:, 4:6])
         b = _homogeneous(v[:, 2:4], v[:, 6:8])
     else:
-        raise ValueError(f"`kind`: expected 'vf' or 'ee', got {kind!r}")
+        raise InputError(f"`kind`: expected 'vf' or 'ee', got {kind!r}")
     return np.ascontiguousarray(a[:, None]), np.ascontiguousarray(b[:, None])
 
 
@@ -154,7 +156,7 @@ def load_queries(csv_path, ground_truth=None):
     with _open(csv_path) as fh:
         rows = [line.strip().split(",") for line in fh if line.strip()]
     if len(rows) % 8:
-        raise ValueError(f"`{csv_path}`: {len(rows)} lines is not a multiple of 8")
+        raise InputError(f"`{csv_path}`: {len(rows)} lines is not a multiple of 8")
     v = np.array([[float(Fraction(int(r[2 * k]), int(r[2 * k + 1]))) for k in range(3)]
                   for r in rows]).reshape(-1, 8, 3)
     if ground_truth is not None:
@@ -162,10 +164,10 @@ def load_queries(csv_path, ground_truth=None):
             truth = np.array(json.load(fh), dtype=bool)
     else:
         if len(rows[0]) < 7:
-            raise ValueError(f"`{csv_path}`: no ground-truth column; pass `ground_truth`")
+            raise InputError(f"`{csv_path}`: no ground-truth column; pass `ground_truth`")
         truth = np.array([int(rows[8 * k][6]) != 0 for k in range(len(rows) // 8)])
     if truth.shape != (v.shape[0],):
-        raise ValueError(f"`ground_truth`: {truth.shape[0]} values for {v.shape[0]} queries")
+        raise InputError(f"`ground_truth`: {truth.shape[0]} values for {v.shape[0]} queries")
     return v, truth
 
 
@@ -191,6 +193,6 @@ def load_dataset(name, kind, root=DATA_ROOT):
     """All queries of one copied set (``"handcrafted"`` / ``"simulation"``), kind vf / ee."""
     files = dataset_files(root).get((name, kind))
     if not files:
-        raise ValueError(f"no query files for set {name!r}, kind {kind!r} under {root}")
+        raise InputError(f"no query files for set {name!r}, kind {kind!r} under {root}")
     parts = [load_queries(csv, gt) for csv, gt in files]
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from mjccd.errors import InputError, InputTypeError
+
 from . import _kernels as K
 from .primitives import KIND_CODE, Patch, corner_indices, subdivision_matrices
 
@@ -62,12 +64,12 @@ class SearchStats:
 def _as_set(value, field):
     items = [value] if isinstance(value, Patch) else list(value)
     if not items:
-        raise ValueError(f"`{field}`: expected a Patch or a non-empty list of patches")
+        raise InputTypeError(f"`{field}`: expected a Patch or a non-empty list of patches")
     for k, p in enumerate(items):
         if not isinstance(p, Patch):
-            raise ValueError(f"`{field}[{k}]`: expected a Patch, got {type(p).__name__}")
+            raise InputTypeError(f"`{field}[{k}]`: expected a Patch, got {type(p).__name__}")
         if (p.kind, p.degree) != (items[0].kind, items[0].degree):
-            raise ValueError(
+            raise InputError(
                 f"`{field}[{k}]`: all primitives of one side must share kind and degree, "
                 f"got {p.kind}{p.degree} after {items[0].kind}{items[0].degree}")
     return items
@@ -88,24 +90,24 @@ class _Side:
 def _options(method, inclusion, delta, t_max, margin, time_margin, max_iterations,
              max_nodes, queue="depth", obb_frames="interval"):
     if obb_frames not in OBB_FRAMES:
-        raise ValueError(f"`obb_frames`: expected 'interval' or 'step', got {obb_frames!r}")
+        raise InputError(f"`obb_frames`: expected 'interval' or 'step', got {obb_frames!r}")
     if queue not in QUEUES:
-        raise ValueError(f"`queue`: expected 'depth' or 'time', got {queue!r}")
+        raise InputError(f"`queue`: expected 'depth' or 'time', got {queue!r}")
     if method not in METHODS:
-        raise ValueError(f"`method`: expected one of {sorted(METHODS)}, got {method!r}")
+        raise InputError(f"`method`: expected one of {sorted(METHODS)}, got {method!r}")
     if inclusion not in INCLUSIONS:
-        raise ValueError(f"`inclusion`: expected 'obb' or 'aabb', got {inclusion!r}")
+        raise InputError(f"`inclusion`: expected 'obb' or 'aabb', got {inclusion!r}")
     for name, val in (("delta", delta), ("t_max", t_max)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-            raise ValueError(f"`{name}`: expected a positive number, got {val!r}")
+            raise InputError(f"`{name}`: expected a positive number, got {val!r}")
     if t_max > 1.0:
-        raise ValueError(f"`t_max`: the motion is defined on [0, 1], got {t_max!r}")
+        raise InputError(f"`t_max`: the motion is defined on [0, 1], got {t_max!r}")
     for name, val in (("margin", margin), ("time_margin", time_margin)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
-            raise ValueError(f"`{name}`: expected a non-negative number, got {val!r}")
+            raise InputError(f"`{name}`: expected a non-negative number, got {val!r}")
     for name, val in (("max_iterations", max_iterations), ("max_nodes", max_nodes)):
         if not (isinstance(val, (int, np.integer)) and val > 0):
-            raise ValueError(f"`{name}`: expected a positive integer, got {val!r}")
+            raise InputError(f"`{name}`: expected a positive integer, got {val!r}")
 
 
 def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iterations,
@@ -120,7 +122,7 @@ def _run(a, b, *, method, inclusion, delta, t_max, margin, time_margin, max_iter
         pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
         if (pairs < 0).any() or (pairs[:, 0] >= len(sa.items)).any() or (
                 pairs[:, 1] >= len(sb.items)).any():
-            raise ValueError("`pairs`: index out of range")
+            raise InputError("`pairs`: index out of range")
     points = np.full((max_points, 9), np.nan)
     info = np.zeros(4, dtype=np.int64)
     K.search(sa.kind, sa.corners, sa.sub, sa.roots, sb.kind, sb.corners, sb.sub, sb.roots,
@@ -199,9 +201,9 @@ def contact_manifold(a, b, *, simultaneity, separation, max_points=256, method="
     """
     for name, val in (("simultaneity", simultaneity), ("separation", separation)):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val >= 0):
-            raise ValueError(f"`{name}`: expected a non-negative number, got {val!r}")
+            raise InputError(f"`{name}`: expected a non-negative number, got {val!r}")
     if not (isinstance(max_points, (int, np.integer)) and max_points > 0):
-        raise ValueError(f"`max_points`: expected a positive integer, got {max_points!r}")
+        raise InputError(f"`max_points`: expected a positive integer, got {max_points!r}")
     sa, sb, pairs, points, info = _run(
         a, b, method=method, inclusion=inclusion, delta=delta, t_max=t_max, margin=margin,
         time_margin=time_margin, max_iterations=max_iterations, max_nodes=max_nodes,

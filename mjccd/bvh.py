@@ -14,7 +14,9 @@ BVH world (Y up) to MuJoCo's (Z up): BVH ``(x, y, z)`` maps to MuJoCo
 A :class:`Placement` (yaw about +z, then a shift) puts a character in a scene.
 """
 import argparse
+import contextlib
 import math
+import numbers
 import os
 import re
 import sys
@@ -22,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mjccd.errors import InputError
+from mjccd import files
+from mjccd.errors import InputError, MjccdError
 
 # CMU ASF length unit: 1/0.45 inch (about 0.0564 m).
 CMU_SCALE = 0.0254 / 0.45
@@ -54,6 +57,16 @@ LIMB_RADII = (
     ("hand|wrist", 0.04),
 )
 DEFAULT_RADIUS = 0.04
+
+# Deepest joint chain accepted: a human skeleton is about 20 deep, and MuJoCo's
+# XML reader stops at about 500 nested elements.
+MAX_DEPTH = 256
+# Accepted metres per file unit (micrometres to kilometres) and seconds per frame.
+SCALE_RANGE = (1e-6, 1e3)
+FRAME_TIME_RANGE = (1e-6, 3600.0)
+# Longest offset or position (metres, once scaled): far beyond any capture
+# volume, far below where squared lengths overflow.
+MAX_LENGTH = 1e6
 
 
 class BVHError(InputError):
@@ -143,7 +156,7 @@ def parse_bvh(text, source="<bvh>"):
     if motion_line is None:
         raise BVHError(f"{source}: no MOTION section (file truncated?)")
     joints = []
-    pos = _parse_joint(tokens, 1, -1, joints, source)
+    pos = _parse_joint(tokens, 1, -1, joints, source, depth=1)
     if pos != len(tokens):
         tok, n = tokens[pos]
         raise BVHError(f"{source}: line {n}: unexpected {tok!r} after the hierarchy")
@@ -175,8 +188,13 @@ def _numbers(tokens, pos, count, what, source):
     return out, pos + count
 
 
-def _parse_joint(tokens, pos, parent, joints, source):
-    """Parse ROOT/JOINT name { OFFSET ... CHANNELS ... children }; returns the next position."""
+def _parse_joint(tokens, pos, parent, joints, source, depth):
+    """Parse ROOT/JOINT name { OFFSET ... CHANNELS ... children }; returns the next position.
+
+    ``depth`` counts the joints from the root down to this one; beyond
+    :data:`MAX_DEPTH` the file is refused (no skeleton is that deep, and the
+    model could not be loaded).
+    """
     if pos >= len(tokens):
         raise BVHError(f"{source}: hierarchy has no ROOT (file truncated?)")
     kind, n = tokens[pos]
@@ -187,6 +205,9 @@ def _parse_joint(tokens, pos, parent, joints, source):
     if pos + 1 >= len(tokens):
         raise BVHError(f"{source}: hierarchy ends early after {kind} (file truncated?)")
     name = tokens[pos + 1][0]
+    if depth > MAX_DEPTH:
+        raise BVHError(f"{source}: line {n}: joint {name!r} is {depth} joints deep; "
+                       f"at most {MAX_DEPTH} are accepted")
     if any(j.name == name for j in joints):
         raise BVHError(f"{source}: line {n}: joint name {name!r} used twice")
     pos = _expect(tokens, pos + 2, "{", source)
@@ -218,7 +239,7 @@ def _parse_joint(tokens, pos, parent, joints, source):
         if tok == "}":
             return pos + 1
         if tok == "JOINT":
-            pos = _parse_joint(tokens, pos, me, joints, source)
+            pos = _parse_joint(tokens, pos, me, joints, source, depth + 1)
         elif tok == "End":
             pos = _expect(tokens, pos + 1, "Site", source)
             pos = _expect(tokens, pos, "{", source)
@@ -247,6 +268,10 @@ def _parse_motion(lines, motion_line, n_channels, source):
     if not (math.isfinite(frame_time) and frame_time > 0):
         raise BVHError(f"{source}: line {rest[1][0]}: expected 'Frame Time: <positive seconds>', "
                        f"got {rest[1][1].strip()!r}")
+    low, high = FRAME_TIME_RANGE
+    if not low <= frame_time <= high:
+        raise BVHError(f"{source}: line {rest[1][0]}: Frame Time: {frame_time:g} s is outside "
+                       f"[{low:g}, {high:g}] seconds")
     data = rest[2:]
     if len(data) < n_frames:
         raise BVHError(f"{source}: header says {n_frames} frames but only {len(data)} frame lines "
@@ -359,6 +384,25 @@ def _sanitize(name):
     return re.sub(r"[^A-Za-z0-9_.\-]", "_", name)
 
 
+def mjcf_names(clip):
+    """MJCF body name of each joint: the BVH name with characters MJCF dislikes replaced by ``_``.
+
+    Names that collide once replaced (``L#Hip`` and ``L_Hip``) stay distinct:
+    the first keeps the name, later ones get ``_2``, ``_3``, ... (never a
+    name another joint already has).
+    """
+    wanted = [_sanitize(j.name) for j in clip.joints]
+    reserved = set(wanted)
+    taken, names = set(), []
+    for base in wanted:
+        name, k = base, 2
+        while name in taken or (name != base and name in reserved):
+            name, k = f"{base}_{k}", k + 1
+        taken.add(name)
+        names.append(name)
+    return names
+
+
 def character_bodies(clip, layout, *, extra=None, indent="    "):
     """MJCF ``<body>`` text of one character (the root's body with everything below it).
 
@@ -369,11 +413,12 @@ def character_bodies(clip, layout, *, extra=None, indent="    "):
     s = layout.scale
     out = []
     ref = [layout.reference_frame]
+    names = mjcf_names(clip)
 
     def body(index, depth):
         j = clip.joints[index]
         pad = indent * depth
-        name = layout.prefix + _sanitize(j.name)
+        name = layout.prefix + names[index]
         if index == 0:
             pos0, quat0 = root_pose(clip, layout, ref)
             attrs = f'pos="{_fmt(pos0[0])}" quat="{_fmt(quat0[0])}"'
@@ -583,9 +628,10 @@ def fit_capsules(capsules):
 def bounding_geoms(clip, layout):
     """MJCF lines of one bounding ellipsoid per rigid part, keyed by the joint whose body holds it."""
     extra = {}
+    names = mjcf_names(clip)
     for index, caps in rigid_groups(clip, layout).items():
         radii, centre, quat = fit_capsules(caps)
-        name = layout.prefix + _sanitize(clip.joints[index].name)
+        name = layout.prefix + names[index]
         extra[clip.joints[index].name] = [
             f'<geom name="{name}_bound" class="bound" size="{_fmt(radii)}" pos="{_fmt(centre)}" quat="{_fmt(quat)}"/>']
     return extra
@@ -628,19 +674,60 @@ def model_xml(characters, *, model_name="bvh", floor=True, extra_worldbody=()):
 
 
 def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=()):
-    """Read a BVH file; return ``(xml, qpos (T, nq), time (T), clip)`` for one character."""
+    """Read a BVH file; return ``(xml, qpos (T, nq), time (T), clip)`` for one character.
+
+    The model is compiled by MuJoCo before it is returned (see
+    :func:`check_model`), so a clip that cannot become a working model is
+    refused here, naming ``path``, rather than when the model is loaded.
+    """
+    low, high = SCALE_RANGE
+    if not (isinstance(scale, numbers.Real) and low <= scale <= high):  # NaN fails too
+        raise InputError(f"scale: metres per file unit must be in [{low:g}, {high:g}], got {scale!r}")
     clip = read_bvh(path)
     if not 0 <= start < clip.n_frames:
-        raise ValueError(f"start: frame {start} outside the clip's {clip.n_frames} frames")
-    if not (math.isfinite(scale) and scale > 0):
-        raise ValueError(f"scale: must be a positive number, got {scale!r}")
+        raise BVHError(f"{path}: start: frame {start} outside the clip's {clip.n_frames} frames")
+    length = scale * _longest(clip)
+    if length > MAX_LENGTH:
+        raise BVHError(f"{path}: an offset or position reaches {length:.3g} m at scale {scale:g}; "
+                       f"at most {MAX_LENGTH:g} m is accepted")
     layout = Layout(prefix, float(scale), Placement(), frozenset(frozen), start)
     name = os.path.splitext(os.path.basename(str(path)))[0]
     xml = model_xml([(clip, layout, None)], model_name=name)
     frames = np.arange(start, clip.n_frames)
     qpos = qpos_trajectory(clip, layout, frames)
     time = (frames - start) * clip.frame_time
+    check_model(xml, qpos, str(path))
     return xml, qpos, time, clip
+
+
+def _longest(clip):
+    """Largest absolute offset, end-site offset or position-channel value of a clip, in file units."""
+    values = [np.abs(j.offset).max() for j in clip.joints]
+    values += [np.abs(e).max() for j in clip.joints for e in j.end_sites]
+    starts = clip.channel_start()
+    for j, first in zip(clip.joints, starts):
+        for k, ch in enumerate(j.channels):
+            if ch.endswith("position"):
+                values.append(np.abs(clip.frames[:, first + k]).max())
+    return float(max(values))
+
+
+def check_model(xml, qpos, source):
+    """Refuse, with a :class:`BVHError` naming ``source``, a model MuJoCo rejects or a qpos that does not fit it.
+
+    Names the BVH file allows can still collide in MJCF (a joint called
+    ``Hips_root`` beside the root's free joint); compiling is the one
+    complete check.
+    """
+    import mujoco
+
+    try:
+        model = mujoco.MjModel.from_xml_string(xml)
+    except ValueError as exc:
+        reason = " ".join(str(exc).split())
+        raise BVHError(f"{source}: MuJoCo rejects the model built from this clip: {reason}") from None
+    if qpos.shape[1] != model.nq:
+        raise BVHError(f"{source}: the motion has {qpos.shape[1]} qpos values per frame, the model nq={model.nq}")
 
 
 # ---------------------------------------------------------------- command line
@@ -649,26 +736,41 @@ def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=()):
 def main(argv=None):
     """``mjccd import-bvh CLIP.bvh -o MODEL.xml [--traj TRAJ.npz]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="mjccd import-bvh",
-                                     description="Build an MJCF skeleton and a qpos trajectory from a BVH clip.")
+                                     description="Build an MJCF skeleton and a qpos trajectory from a BVH clip. "
+                                                 "Bodies keep the joint names, with characters other than letters, "
+                                                 "digits, '_', '.' and '-' replaced by '_' (and _2, _3, ... added "
+                                                 "where two names would then collide).  The model is compiled by "
+                                                 "MuJoCo before anything is written; both outputs appear together "
+                                                 "or not at all.")
     parser.add_argument("clip", help="BVH file")
     parser.add_argument("-o", "--output", required=True, help="MJCF model to write")
     parser.add_argument("--traj", help="write the motion here as .npz (qpos T x nq, time T)")
     parser.add_argument("--scale", type=float, default=CMU_SCALE,
-                        help=f"metres per file unit (default: CMU, {CMU_SCALE:.6f})")
+                        help=f"metres per file unit, {SCALE_RANGE[0]:g} to {SCALE_RANGE[1]:g} "
+                             f"(default: CMU, {CMU_SCALE:.6f})")
     parser.add_argument("--start", type=int, default=0,
                         help="first frame to keep (1 drops a leading T-pose frame)")
+    parser.add_argument("--force", action="store_true", help="replace existing output files")
     args = parser.parse_args(argv)
+    outputs = [args.output] + ([args.traj] if args.traj else [])
     try:
+        if args.traj and os.path.realpath(args.traj) == os.path.realpath(args.output):
+            raise InputError(f"--traj: {args.traj} is also the -o model file; give two different names")
         xml, qpos, time, clip = import_bvh(args.clip, scale=args.scale, start=args.start)
-        with open(args.output, "w") as fh:
-            fh.write(xml)
-        if args.traj:
-            np.savez_compressed(args.traj, qpos=qpos, time=time)
-    except OSError as exc:
-        print(f"mjccd import-bvh: cannot write {exc.filename}: {exc.strerror}", file=sys.stderr)
-        return 2
-    except ValueError as exc:
+        for path in outputs:
+            files.check_output_file(path, inputs=[args.clip], force=args.force)
+        # both files are renamed into place only once both are complete
+        with contextlib.ExitStack() as stack:
+            model_file = stack.enter_context(files.atomic_open(args.output, "w", encoding="utf-8"))
+            model_file.write(xml)
+            if args.traj:
+                traj_file = stack.enter_context(files.atomic_open(args.traj, "wb"))
+                np.savez_compressed(traj_file, qpos=qpos, time=time)
+    except (MjccdError, ValueError) as exc:
         print(f"mjccd import-bvh: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"mjccd import-bvh: cannot write {', '.join(outputs)}: {exc.strerror}", file=sys.stderr)
         return 2
     msg = f"{args.output}: {len(clip.joints)} joints, nq={qpos.shape[1]}"
     if args.traj:

@@ -14,14 +14,18 @@ above* -- for an ellipsoidal atom through the dual of the trust-region problem
 of the geometry is inside the returned ellipsoid, not only the samples.
 """
 import argparse
+import contextlib
 import os
 import sys
+import tempfile
 from dataclasses import dataclass
 
 import mujoco
 import numba
 import numpy as np
 
+from mjccd import files
+from mjccd.errors import InputError, MjccdError
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 
 SUPPORTED = {
@@ -34,6 +38,8 @@ SUPPORTED = {
 }
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
+# Names of the geoms written by :func:`write_mjcf`; a model read back drops them (see :func:`_load`).
+GEOM_PREFIX = "mjccd_ellipsoid_"
 
 
 @dataclass(frozen=True)
@@ -353,27 +359,49 @@ def volume_report(ellipsoids):
 # ---------------------------------------------------------------- MJCF output
 
 
-def write_mjcf(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=VISUAL_RGBA):
-    """Copy an MJCF file with the ellipsoids added as visual-only geoms.
+def _one_line(exc):
+    return " ".join(str(exc).split())
+
+
+def _load(model_path):
+    """``(spec, compiled model)`` of an MJCF file, less the ellipsoid geoms an earlier fit added.
+
+    So fitting a fitted model replaces its ellipsoids: they are neither
+    bounded themselves nor added a second time.  Errors name the file.
+    """
+    try:
+        spec = mujoco.MjSpec.from_file(os.fspath(model_path))
+    except ValueError as exc:
+        raise InputError(f"{model_path}: MuJoCo cannot load it: {_one_line(exc)}") from None
+    earlier = [geom for geom in spec.geoms if geom.name.startswith(GEOM_PREFIX)]
+    for geom in earlier:
+        spec.delete(geom)
+    try:
+        return spec, spec.compile()
+    except ValueError as exc:
+        without = f" without its {len(earlier)} {GEOM_PREFIX}* geoms" if earlier else ""
+        raise InputError(f"{model_path}: MuJoCo cannot compile it{without}: {_one_line(exc)}") from None
+
+
+def load_model(model_path):
+    """The compiled model of an MJCF file, less the ellipsoids an earlier fit added (see :func:`_load`)."""
+    return _load(model_path)[1]
+
+
+def mjcf_with_ellipsoids(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=VISUAL_RGBA):
+    """MJCF text of the model with the ellipsoids added as visual-only geoms, to be saved at ``output_path``.
 
     The geoms have ``contype = conaffinity = 0``, zero density and their own
     ``group`` (hidden or shown with the viewer's group toggles), so the
-    simulation is unchanged.  Asset directories are rewritten relative to the
-    output file.
+    simulation is unchanged.  Ellipsoids of an earlier fit are replaced.
+    Asset folders are rewritten relative to ``output_path``.
     """
-    spec = mujoco.MjSpec.from_file(os.fspath(model_path))
-    model = spec.compile()
-    src_dir = os.path.dirname(os.path.abspath(model_path))
-    out_dir = os.path.dirname(os.path.abspath(output_path))
-    for attr in ("meshdir", "texturedir"):
-        value = getattr(spec, attr)
-        if src_dir != out_dir and not os.path.isabs(value or ""):
-            setattr(spec, attr, os.path.relpath(os.path.join(src_dir, value or ""), out_dir))
+    spec, model = _load(model_path)
     ids = ellipsoids.body_ids(model)
     for k, (bid, r, p, q) in enumerate(zip(ids, ellipsoids.radii, ellipsoids.positions, ellipsoids.quaternions)):
         body = spec.worldbody if bid == 0 else spec.bodies[bid]
         geom = body.add_geom()
-        geom.name = f"mjccd_ellipsoid_{k}"
+        geom.name = f"{GEOM_PREFIX}{k}"
         geom.type = mujoco.mjtGeom.mjGEOM_ELLIPSOID
         geom.size = r
         geom.pos = p
@@ -383,17 +411,77 @@ def write_mjcf(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=
         geom.density = 0.0
         geom.group = group
         geom.rgba = rgba
-    spec.compile()
-    with open(output_path, "w") as fh:
-        fh.write(spec.to_xml())
+    src_dir = os.path.dirname(os.path.abspath(model_path))
+    out_dir = os.path.dirname(os.path.abspath(output_path))
+    if src_dir != out_dir:
+        for attr in ("meshdir", "texturedir"):
+            value = getattr(spec, attr)
+            if not os.path.isabs(value or ""):
+                setattr(spec, attr, os.path.relpath(os.path.join(src_dir, value or ""), out_dir))
+        spec.modelfiledir = out_dir + os.sep  # assets are now found from the output's folder
+    try:
+        return spec.to_xml()  # compiles the model again, with the ellipsoids
+    except ValueError as exc:
+        raise InputError(f"{model_path}: MuJoCo cannot compile it with the ellipsoids added: "
+                         f"{_one_line(exc)}") from None
+
+
+def write_mjcf(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=VISUAL_RGBA):
+    """Write :func:`mjcf_with_ellipsoids` to ``output_path`` (atomically: the old file or the new, never half)."""
+    files.write_text(output_path, mjcf_with_ellipsoids(model_path, ellipsoids, output_path, group=group, rgba=rgba))
+
+
+def _ellipsoid_file_bytes(ellipsoids, name):
+    """The bytes :meth:`EllipsoidSet.save` writes for a file called ``name`` (.json or .npz)."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, os.path.basename(name))
+        ellipsoids.save(path)
+        with open(path, "rb") as fh:
+            return fh.read()
 
 
 # ---------------------------------------------------------------- command line
 
+DESCRIPTION = """\
+Fit a bounding ellipsoid to each body (or geom) of a MuJoCo model, report the
+volume ratios, and write the model with the ellipsoids added as visual-only
+geoms named mjccd_ellipsoid_<k> (-o) and the ellipsoids themselves
+(--ellipsoids).  A model that already has geoms named mjccd_ellipsoid_* (the
+output of an earlier fit) is refitted: those geoms are dropped before the fit
+and replaced, never bounded and never duplicated.  Existing files, and the
+model itself, are replaced only with --force; both outputs appear together or
+not at all."""
+
+
+@contextlib.contextmanager
+def _warnings_on_stderr(model_path):
+    """Send MuJoCo's warnings to stderr, naming the model (not to stdout and a MUJOCO_LOG.TXT in the working folder)."""
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(lambda text: print(f"mjccd fit: {model_path}: MuJoCo warns: {text}", file=sys.stderr))
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
+def _output_paths(args):
+    """The MJCF output and the ellipsoid file to write (each None when not asked for), checked before the fit."""
+    if not 0 <= args.group <= 5:
+        raise InputError(f"--group: must be in 0..5, got {args.group}")
+    target = args.ellipsoids or (os.path.splitext(args.output)[0] + ".ellipsoids.json" if args.output else None)
+    if target and not target.endswith((".json", ".npz")):
+        raise InputError(f"--ellipsoids: expected a .json or .npz file name, got {target!r}")
+    if target and args.output and os.path.realpath(target) == os.path.realpath(args.output):
+        raise InputError(f"--ellipsoids: {target} is also the -o model file; give two different names")
+    for path in (args.output, target):
+        if path:
+            files.check_output_file(path, inputs=[args.model], force=args.force)
+    return args.output, target
+
 
 def main(argv=None):
     """``mjccd fit MODEL.xml -o OUT.xml``: fit, report volume ratios, write MJCF and an ellipsoid file."""
-    parser = argparse.ArgumentParser(prog="mjccd fit", description=main.__doc__)
+    parser = argparse.ArgumentParser(prog="mjccd fit", description=DESCRIPTION)
     parser.add_argument("model", help="MJCF model file")
     parser.add_argument("-o", "--output", help="MJCF file with the ellipsoids added as visual geoms")
     parser.add_argument("--ellipsoids", help="ellipsoid file to write (.json or .npz); "
@@ -402,24 +490,32 @@ def main(argv=None):
     parser.add_argument("--bodies", nargs="+", help="only these bodies")
     parser.add_argument("--include-visual", action="store_true", help="also bound non-colliding geoms")
     parser.add_argument("--group", type=int, default=VISUAL_GROUP, help="geom group of the ellipsoids")
+    parser.add_argument("--force", action="store_true", help="replace existing output files (even MODEL)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no volume report")
     args = parser.parse_args(argv)
+    written = []
     try:
-        model = mujoco.MjModel.from_xml_path(args.model)
-    except (ValueError, OSError) as exc:
-        print(f"mjccd fit: cannot load {args.model}: {str(exc).strip().splitlines()[0]}", file=sys.stderr)
+        with _warnings_on_stderr(args.model):
+            model = load_model(args.model)
+            output, target = _output_paths(args)
+            written = [p for p in (output, target) if p]
+            try:
+                ellipsoids = fit_model(model, per=args.per, bodies=args.bodies, include_visual=args.include_visual)
+            except ValueError as exc:
+                raise InputError(f"{args.model}: {exc}") from None
+            xml = mjcf_with_ellipsoids(args.model, ellipsoids, output, group=args.group) if output else None
+        data = _ellipsoid_file_bytes(ellipsoids, target) if target else None
+        # both files are renamed into place only once both are complete
+        with contextlib.ExitStack() as stack:
+            if output:
+                stack.enter_context(files.atomic_open(output, "w", encoding="utf-8")).write(xml)
+            if target:
+                stack.enter_context(files.atomic_open(target, "wb")).write(data)
+    except (MjccdError, ValueError) as exc:
+        print(f"mjccd fit: {exc}", file=sys.stderr)
         return 2
-    try:
-        ellipsoids = fit_model(model, per=args.per, bodies=args.bodies, include_visual=args.include_visual)
-        if not 0 <= args.group <= 5:
-            raise ValueError(f"--group: must be in 0..5, got {args.group}")
-        if args.output:
-            write_mjcf(args.model, ellipsoids, args.output, group=args.group)
-        target = args.ellipsoids or (os.path.splitext(args.output)[0] + ".ellipsoids.json" if args.output else None)
-        if target:
-            ellipsoids.save(target)
-    except (ValueError, OSError) as exc:
-        print(f"mjccd fit: {args.model}: {exc}", file=sys.stderr)
+    except OSError as exc:
+        print(f"mjccd fit: cannot write {', '.join(written)}: {exc.strerror}", file=sys.stderr)
         return 2
     if not args.quiet:
         print(volume_report(ellipsoids))

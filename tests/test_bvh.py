@@ -184,6 +184,51 @@ def test_cli(tmp_path, capsys):
     assert data["qpos"].shape == (1199, 127)
     assert mujoco.MjModel.from_xml_path(str(out)).nq == 127
     bad = _truncate(tmp_path, "HIERARCHY\nROOT Hips\n{\n")
-    assert bvh.main([str(bad), "-o", str(out)]) == 2
+    assert bvh.main([str(bad), "-o", str(tmp_path / "bad.xml")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "truncated" in err[0] and "Traceback" not in err[0]
+
+
+def _chain(depth):
+    """A clip whose joints form one chain ``depth`` joints deep."""
+    lines = ["HIERARCHY"]
+    for k in range(depth):
+        lines += [f"{'ROOT' if k == 0 else 'JOINT'} J{k}", "{", "OFFSET 0 1 0",
+                  "CHANNELS 3 Zrotation Yrotation Xrotation"]
+    lines += ["End Site", "{", "OFFSET 0 1 0", "}"] + ["}"] * depth
+    return "\n".join(lines + ["MOTION", "Frames: 1", "Frame Time: 0.01", " ".join(["0"] * (3 * depth))]) + "\n"
+
+
+def test_depth_limit_names_the_joint(tmp_path):
+    clip = bvh.read_bvh(_truncate(tmp_path, _chain(bvh.MAX_DEPTH)))
+    assert len(clip.joints) == bvh.MAX_DEPTH
+    _, qpos, _, _ = bvh.import_bvh(_truncate(tmp_path, _chain(bvh.MAX_DEPTH), "deepest.bvh"))
+    assert qpos.shape == (1, 7 + 4 * (bvh.MAX_DEPTH - 1))
+    with pytest.raises(bvh.BVHError, match=rf"deep.bvh: line \d+: joint 'J{bvh.MAX_DEPTH}' is {bvh.MAX_DEPTH + 1} "
+                                           "joints deep"):
+        bvh.read_bvh(_truncate(tmp_path, _chain(3000), "deep.bvh"))
+
+
+@pytest.mark.parametrize("frame_time", ["1e308", "7200", "1e-300"])
+def test_frame_time_out_of_range(tmp_path, frame_time):
+    text = _chain(2).replace("Frame Time: 0.01", f"Frame Time: {frame_time}")
+    with pytest.raises(bvh.BVHError, match=r"bad.bvh: line \d+: Frame Time: .* outside \[1e-06, 3600\] seconds"):
+        bvh.read_bvh(_truncate(tmp_path, text))
+
+
+def test_colliding_names_become_distinct():
+    joints = [bvh.Joint(name, -1, np.zeros(3)) for name in ("L#Hip", "L_Hip", "L_Hip_2", "L Hip")]
+    clip = bvh.Clip(joints, np.zeros((1, 0)), 0.01)
+    assert bvh.mjcf_names(clip) == ["L_Hip", "L_Hip_3", "L_Hip_2", "L_Hip_4"]
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf"), 1e300, 1e-300])
+def test_scale_out_of_range(scale):
+    with pytest.raises(ValueError, match="scale: metres per file unit must be in"):
+        bvh.import_bvh(_clip_path("cmu_13_18_boxing_first10s.bvh"), scale=scale)
+
+
+def test_lengths_that_overflow_once_scaled(tmp_path):
+    text = _chain(2).replace("OFFSET 0 1 0", "OFFSET 0 1e300 0", 1)
+    with pytest.raises(bvh.BVHError, match=r"bad.bvh: an offset or position reaches 1e\+300 m at scale 1"):
+        bvh.import_bvh(_truncate(tmp_path, text), scale=1.0)

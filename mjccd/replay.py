@@ -5,12 +5,17 @@ motion model (``rigid``: centre and quaternion lerp; ``affine``: centre and
 shape-matrix lerp; ``chain``: the joints of its kinematic chain, hinge angles
 with tan(theta/2) linear), and every pair is checked exactly over the frame
 interval.  The bounding ellipsoids are the model's ellipsoid geoms in geom
-group 3 (all ellipsoid geoms when group 3 has none).  By default a pair is
+group 5 (all ellipsoid geoms when group 5 has none).  By default a pair is
 checked when its two ellipsoids hang under different top-level bodies and at
 least one of them moves.
 
+Inputs are checked before any work: a bad model or trajectory stops with a
+:class:`ReplayError` naming the file and the problem.  The frames run in
+chunks; Ctrl-C is acted on between chunks, never inside compiled code.
+
 Outputs: a table of first contacts, ``contacts.json``, ``contacts.csv``,
-``timeline.png`` and, where an OpenGL backend works, a few rendered frames.
+``timeline.png`` and, where an OpenGL backend works, a few rendered frames,
+written all-or-nothing into an :class:`mjccd.files.OutputFolder`.
 """
 import argparse
 import csv
@@ -20,17 +25,31 @@ import os
 import pathlib
 import sys
 import time as _time
+import zipfile
+import zlib
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from mjccd.errors import InputError
+from mjccd import interrupts
+from mjccd.errors import InputError, MjccdError, OutputError
+from mjccd.files import OutputFolder
 
 MOTIONS = ("rigid", "affine", "chain")
 BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
 # filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
 COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlapping_t0", "solved_exactly",
                  "colliding", "pruned", "uncertain")
+OUTPUT_PATTERNS = ("contacts.json", "contacts.csv", "timeline.png", "frame_*.png")  # every file replay writes
+# frame intervals per chunk of compiled work (Ctrl-C and the progress bar act between chunks): a few
+# milliseconds of scene kernels, or one frame of the much slower chain motion
+CHUNK_FRAMES = {"rigid": 64, "affine": 64, "chain": 1}
+NPZ_ARRAYS = ("qpos", "time", "keyframes")  # the arrays a trajectory .npz may hold
+RADIUS_RANGE = (1e-6, 1e6)   # metres; semi-axes outside it overflow or lose all precision in the solver
+COORDINATE_LIMIT = 1e6   # largest |qpos| value and ellipsoid centre coordinate (metres), for the same reason
+TIME_LIMIT = 1e12        # largest |time| in seconds
+MIN_QUATERNION_NORM = 1e-12  # shorter joint quaternions are refused (MuJoCo would make them the identity)
 
 
 class ReplayError(InputError):
@@ -52,22 +71,51 @@ class Bounds:
     pairs: np.ndarray             # (P, 2) indices into the N ellipsoids
 
 
+def _reason(exc):
+    """The first line of an exception's message, or its type when it has none."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+@contextmanager
+def _mujoco_warnings():
+    """Collect MuJoCo's warnings instead of letting it append them to MUJOCO_LOG.TXT in the working folder."""
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+    caught = []
+    mujoco.set_mju_user_warning(caught.append)
+    try:
+        yield caught
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 def load_model(model_path):
-    """Compile an MJCF file; errors name the file."""
+    """Compile an MJCF file; errors name the file, then give MuJoCo's message; its warnings go to stderr."""
     import mujoco
 
     path = pathlib.Path(model_path)
+    if path.is_dir():
+        raise ReplayError(f"{model_path}: is a folder, expected an MJCF model file")
     if not path.is_file():
         raise ReplayError(f"{model_path}: model file not found")
-    try:
-        return mujoco.MjModel.from_xml_path(str(path))
-    except ValueError as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else "cannot compile"
-        raise ReplayError(f"{model_path}: not a valid MJCF model: {first}") from None
+    with _mujoco_warnings() as warned:
+        try:
+            model = mujoco.MjModel.from_xml_path(str(path))
+        except ValueError as exc:
+            message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or "cannot compile"
+            raise ReplayError(f"{model_path}: not a valid MJCF model: {message}") from None
+    for message in warned:
+        print(f"{model_path}: MuJoCo warning: {message}", file=sys.stderr)
+    return model
 
 
-def bounding_ellipsoids(model, pairs=None):
-    """The model's bounding ellipsoids and the pairs to check (see the module docstring)."""
+def bounding_ellipsoids(model, pairs=None, source="model"):
+    """The model's bounding ellipsoids and the pairs to check (see the module docstring).
+
+    ``source`` (the model file) starts the error messages.
+    """
     import mujoco
 
     ell = model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID
@@ -75,8 +123,14 @@ def bounding_ellipsoids(model, pairs=None):
     if len(ids) == 0:
         ids = np.nonzero(ell)[0]
     if len(ids) < 2:
-        raise ReplayError(f"model: needs at least two ellipsoid geoms to check, found {len(ids)}")
+        raise ReplayError(f"{source}: needs at least two ellipsoid geoms to check, found {len(ids)}")
     names = [model.geom(g).name or f"geom{g}" for g in ids]
+    radii = model.geom_size[ids].copy()
+    low, high = RADIUS_RANGE
+    bad = np.nonzero(~np.all((radii >= low) & (radii <= high), axis=1))[0]  # NaN fails too
+    if len(bad):
+        raise ReplayError(f"{source}: ellipsoid {names[bad[0]]!r} has semi-axes {radii[bad[0]].tolist()}; "
+                          f"replay supports {low:g} to {high:g} m")
     bodies = model.geom_bodyid[ids]
     body_names = [model.body(b).name or f"body{b}" for b in bodies]
     if pairs is None:
@@ -85,13 +139,13 @@ def bounding_ellipsoids(model, pairs=None):
         pairs = [(a, b) for a in range(len(ids)) for b in range(a + 1, len(ids))
                  if top[a] != top[b] and (moving[a] or moving[b])]
         if not pairs:
-            raise ReplayError("model: no pair of ellipsoids under different top-level bodies that moves")
+            raise ReplayError(f"{source}: no pair of ellipsoids under different top-level bodies that moves")
     labels = [body if body_names.count(body) == 1 else name.removesuffix("_bound")
               for name, body in zip(names, body_names)]
     pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
     if pairs.size and (pairs.min() < 0 or pairs.max() >= len(ids) or np.any(pairs[:, 0] == pairs[:, 1])):
         raise ReplayError(f"pairs: indices must be distinct and within 0..{len(ids) - 1}")
-    return Bounds(ids, names, body_names, labels, model.geom_size[ids].copy(), pairs)
+    return Bounds(ids, names, body_names, labels, radii, pairs)
 
 
 def _moves(model, bodies):
@@ -107,41 +161,169 @@ def _moves(model, bodies):
 
 
 def load_trajectory(traj, model):
-    """``(qpos (T, nq), time (T))`` from an .npz (qpos, time) or a .bvh clip made for this model."""
-    path = pathlib.Path(traj)
-    if not path.is_file():
-        raise ReplayError(f"{traj}: trajectory file not found")
-    if path.suffix.lower() == ".bvh":
+    """``(qpos (T, nq), time (T))`` from an .npz (qpos, time) or a .bvh clip made for this model.
+
+    Refuses, naming the file and the frame, what MuJoCo would silently change
+    (a zero joint quaternion) and what the solver cannot use (NaN, infinity,
+    values beyond :data:`COORDINATE_LIMIT`, complex numbers); ``time``, when
+    given, must increase.
+    """
+    path = _input_file(traj, "trajectory")
+    suffix = path.suffix.lower()
+    if suffix == ".bvh":
         from mjccd import bvh
 
         _, qpos, time, _ = bvh.import_bvh(path)
-    elif path.suffix.lower() == ".npz":
-        try:
-            with np.load(path) as data:
-                if "qpos" not in data.files:
-                    raise ReplayError(f"{traj}: no 'qpos' array (has {sorted(data.files)})")
-                qpos = np.asarray(data["qpos"], dtype=np.float64)
-                time = np.asarray(data["time"], dtype=np.float64) if "time" in data.files else None
-        except (OSError, ValueError) as exc:
-            if isinstance(exc, ReplayError):
-                raise
-            raise ReplayError(f"{traj}: not a readable .npz file ({exc})") from None
-        if time is None:
-            time = np.arange(qpos.shape[0]) * model.opt.timestep if qpos.ndim == 2 else None
+    elif suffix == ".npz":
+        arrays = read_npz(path)
+        qpos, time = arrays["qpos"], arrays.get("time")
     else:
         raise ReplayError(f"{traj}: unknown trajectory type {path.suffix!r} (expected .npz or .bvh)")
+    qpos = check_qpos(qpos, model, traj)
+    if time is None:
+        time = np.arange(qpos.shape[0]) * model.opt.timestep
+    return qpos, _check_time(time, qpos.shape[0], traj)
+
+
+def load_keyframes(traj, model):
+    """The ``keyframes`` (K >= 2, nq) of a trajectory .npz, checked like ``qpos`` (for ``--intervals``)."""
+    path = _input_file(traj, "trajectory")
+    arrays = read_npz(path) if path.suffix.lower() == ".npz" else {}
+    if "keyframes" not in arrays:
+        raise ReplayError(f"{traj}: --intervals needs an .npz with a 'keyframes' array (K x nq)")
+    return check_qpos(arrays["keyframes"], model, traj, "keyframes")
+
+
+def _input_file(name, what):
+    """The path of an existing input file; a folder or a missing file raises ReplayError naming it."""
+    path = pathlib.Path(name)
+    if path.is_dir():
+        raise ReplayError(f"{name}: is a folder, expected a {what} file")
+    if not path.is_file():
+        raise ReplayError(f"{name}: {what} file not found")
+    return path
+
+
+def read_npz(path):
+    """The arrays of a trajectory .npz by name; a file that is not one, or unknown arrays, raise ReplayError."""
+    expected = "expected an .npz archive (a zip of .npy arrays) with 'qpos' and 'time'"
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(6)
+    except OSError as exc:
+        raise ReplayError(f"{path}: cannot read: {exc.strerror}") from None
+    if not head:
+        raise ReplayError(f"{path}: empty file, {expected}")
+    if head == b"\x93NUMPY":
+        raise ReplayError(f"{path}: holds a single .npy array, {expected}")
+    if not head.startswith(b"PK"):
+        raise ReplayError(f"{path}: not a zip file, {expected}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            names = sorted(data.files)
+            if "qpos" not in names:
+                raise ReplayError(f"{path}: no 'qpos' array (has {names})")
+            extra = [n for n in names if n not in NPZ_ARRAYS]
+            if extra:
+                raise ReplayError(f"{path}: unexpected arrays {extra} (a trajectory holds 'qpos', "
+                                  "optionally 'time' and 'keyframes')")
+            return {name: data[name] for name in names}
+    except ReplayError:
+        raise
+    except zipfile.BadZipFile as exc:
+        raise ReplayError(f"{path}: damaged or truncated .npz archive ({_reason(exc)})") from None
+    except (OSError, ValueError, EOFError, zlib.error, MemoryError) as exc:
+        raise ReplayError(f"{path}: not a readable .npz archive ({_reason(exc)})") from None
+
+
+def _real_array(values, source, field):
+    """``values`` as float64, refusing complex numbers (their imaginary part would be lost) and non-numbers."""
+    if not isinstance(values, np.ndarray):
+        raise ReplayError(f"{source}: {field} is not a numpy array (got {type(values).__name__})")
+    if values.dtype.kind == "c":
+        raise ReplayError(f"{source}: {field} holds complex numbers ({values.dtype}); expected real numbers")
+    if values.dtype.kind not in "fiu":
+        raise ReplayError(f"{source}: {field} has dtype {values.dtype}, expected real numbers")
+    return np.ascontiguousarray(values, dtype=np.float64)
+
+
+def check_qpos(values, model, source, field="qpos"):
+    """(T >= 2, nq) joint positions as float64; errors name ``source``, ``field``, the frame and the joint."""
+    import mujoco
+
+    qpos = _real_array(values, source, field)
     if qpos.ndim != 2 or qpos.shape[1] != model.nq:
-        raise ReplayError(f"{traj}: qpos must have shape (T, {model.nq}) for this model, got {qpos.shape}")
+        raise ReplayError(f"{source}: {field} must have shape (T, {model.nq}) for this model, got {qpos.shape}")
     if qpos.shape[0] < 2:
-        raise ReplayError(f"{traj}: qpos needs at least 2 frames, got {qpos.shape[0]}")
-    if time.shape != (qpos.shape[0],):
-        raise ReplayError(f"{traj}: time must have shape ({qpos.shape[0]},), got {time.shape}")
-    if not (np.all(np.isfinite(qpos)) and np.all(np.isfinite(time))):
-        raise ReplayError(f"{traj}: qpos or time holds NaN or infinity")
+        raise ReplayError(f"{source}: {field} needs at least 2 frames, got {qpos.shape[0]}")
+    joint_of = _qpos_joints(model)
+    bad = np.argwhere(~(np.abs(qpos) <= COORDINATE_LIMIT))  # NaN fails too
+    if len(bad):
+        k, a = bad[0]
+        problem = "is not a finite number" if not np.isfinite(qpos[k, a]) else f"is beyond ±{COORDINATE_LIMIT:g}"
+        raise ReplayError(f"{source}: {field}[{k}, {a}] = {qpos[k, a]:g} (frame {k}, joint {joint_of[a]!r}) "
+                          f"{problem}")
+    quaternion_kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball"}
+    for j in range(model.njnt):
+        kind_name = quaternion_kinds.get(int(model.jnt_type[j]))
+        if kind_name is None:
+            continue
+        a = model.jnt_qposadr[j] + (3 if kind_name == "free" else 0)
+        norms = np.linalg.norm(qpos[:, a:a + 4], axis=1)
+        zero = np.nonzero(norms < MIN_QUATERNION_NORM)[0]
+        if len(zero):
+            raise ReplayError(f"{source}: {field}[{zero[0]}, {a}:{a + 4}] (frame {zero[0]}): the quaternion of "
+                              f"{kind_name} joint {_joint_name(model, j)!r} is zero (norm {norms[zero[0]]:g}); "
+                              "MuJoCo would silently make it the identity")
+    return qpos
+
+
+def _joint_name(model, j):
+    return model.joint(j).name or f"joint{j}"
+
+
+def _qpos_joints(model):
+    """The name of the joint each qpos entry belongs to."""
+    import mujoco
+
+    width = {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}
+    names = [""] * model.nq
+    for j in range(model.njnt):
+        a, size = model.jnt_qposadr[j], width.get(int(model.jnt_type[j]), 1)
+        names[a:a + size] = [_joint_name(model, j)] * size
+    return names
+
+
+def _check_time(values, n, source):
+    """(n,) increasing finite times as float64."""
+    time = _real_array(values, source, "time")
+    if time.shape != (n,):
+        raise ReplayError(f"{source}: time must have shape ({n},), got {time.shape}")
+    bad = np.nonzero(~(np.abs(time) <= TIME_LIMIT))[0]
+    if len(bad):
+        raise ReplayError(f"{source}: time[{bad[0]}] = {time[bad[0]]:g} must be finite and within "
+                          f"±{TIME_LIMIT:g} s")
     if np.any(np.diff(time) <= 0):
         k = int(np.nonzero(np.diff(time) <= 0)[0][0])
-        raise ReplayError(f"{traj}: time must increase, but time[{k + 1}] <= time[{k}]")
-    return np.ascontiguousarray(qpos), np.ascontiguousarray(time)
+        raise ReplayError(f"{source}: time must increase, but time[{k + 1}] <= time[{k}]")
+    return time
+
+
+def check_chain_range(qpos, model, geom_ids, source, field="qpos"):
+    """Refuse hinge angles outside (-pi, pi) on the chains of ``geom_ids``: the chain motion needs them inside."""
+    import mujoco
+
+    from mjccd.mujoco.motions import body_path
+
+    bodies = {b for g in geom_ids for b in body_path(model, model.geom_bodyid[g])}
+    for j in range(model.njnt):
+        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or model.jnt_bodyid[j] not in bodies:
+            continue
+        a = model.jnt_qposadr[j]
+        out = np.nonzero(np.abs(qpos[:, a]) >= math.pi)[0]
+        if len(out):
+            raise ReplayError(f"{source}: {field}[{out[0]}, {a}] = {qpos[out[0], a]:g} (frame {out[0]}): hinge "
+                              f"{_joint_name(model, j)!r} must stay within (-pi, pi) for the chain motion")
 
 
 def geom_poses(model, qpos, geom_ids):
@@ -323,71 +505,130 @@ class ReplayResult:
 
 
 def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progress=True, render=True,
-           max_rendered=4):
+           max_rendered=4, force=False, chunk_frames=None):
     """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
 
     Args:
         model_path: MJCF file with bounding ellipsoid geoms (group 5).
         traj: ``.npz`` with ``qpos`` (T, nq) and ``time`` (T), or a ``.bvh`` clip.
         motion: ``"rigid"``, ``"affine"`` or ``"chain"`` between consecutive frames.
-        out_dir: where to write contacts.json, contacts.csv, timeline.png and frames (None: nothing).
+        out_dir: where to write contacts.json, contacts.csv, timeline.png and frames (None: nothing);
+            a folder holding another run's files is refused unless ``force`` (see :class:`OutputFolder`).
         pairs: (P, 2) ellipsoid index pairs to check instead of the default.
+        chunk_frames: frame intervals per chunk of compiled work (Ctrl-C is acted on between chunks);
+            None: the motion's :data:`CHUNK_FRAMES`.  The results do not depend on it.
     Returns:
         a :class:`ReplayResult`.
     """
     if motion not in MOTIONS:
         raise ReplayError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+    chunk_frames = CHUNK_FRAMES[motion] if chunk_frames is None else chunk_frames
+    if not (isinstance(chunk_frames, (int, np.integer)) and chunk_frames >= 1):
+        raise ReplayError(f"chunk_frames: expected a positive integer, got {chunk_frames!r}")
     model = load_model(model_path)
+    bounds = bounding_ellipsoids(model, pairs, source=str(model_path))
     qpos, time = load_trajectory(traj, model)
-    bounds = bounding_ellipsoids(model, pairs)
+    if motion == "chain":
+        check_chain_range(qpos, model, bounds.geom_ids, traj)
+    folder = None if out_dir is None else output_folder(out_dir, force)
     result = ReplayResult(str(model_path), str(traj), motion, time, bounds)
-    _run(model, qpos, bounds, motion, result, progress)
-    if out_dir is not None:
-        out = pathlib.Path(out_dir)
+    _run(model, qpos, bounds, motion, result, progress, chunk_frames)
+    if folder is not None:
         try:
-            out.mkdir(parents=True, exist_ok=True)
+            with folder:
+                write_reports(result, folder)
+                if render:
+                    render_frames(model, qpos, result, folder, max_rendered)
+        except OutputError:
+            raise
         except OSError as exc:
-            raise ReplayError(f"{out_dir}: cannot create the output folder: {exc.strerror}") from None
-        write_reports(result, out)
-        if render:
-            result.files += render_frames(model, qpos, result, out, max_rendered)
+            raise OutputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror or _reason(exc)}") from None
+        result.files = [str(folder.file_path(name)) for name in folder.written]
     return result
 
 
-def _run(model, qpos, bounds, motion, result, progress):
-    """Kinematics for all frames, then the per-frame checks; fills ``result``."""
+def output_folder(out_dir, force=False):
+    """The :class:`OutputFolder` for ``out_dir``, checked before the replay runs so that a bad ``--out`` costs no time.
+
+    Refuses a file, a folder holding another run's files (unless ``force``:
+    then this tool's earlier outputs there are removed now), and a path that
+    cannot become a folder.
+    """
+    folder = OutputFolder(out_dir, "replay", force=force, patterns=OUTPUT_PATTERNS)
+    nearest = next(p for p in (folder.path, *folder.path.parents) if p.exists())
+    if not nearest.is_dir():
+        raise OutputError(f"{out_dir}: cannot create the output folder: {nearest} is a file")
+    if not os.access(nearest, os.W_OK | os.X_OK):
+        raise OutputError(f"{out_dir}: cannot write into {nearest}: permission denied")
+    return folder
+
+
+def _run(model, qpos, bounds, motion, result, progress, chunk_frames):
+    """Kinematics and the per-frame checks, chunk by chunk of frames; fills ``result``.
+
+    The chunks run inside :func:`mjccd.interrupts.deferred`: a Ctrl-C raises
+    KeyboardInterrupt between two chunks, never inside compiled code.  The
+    frame checker (and its plane cache) carries over from chunk to chunk, so
+    the results do not depend on ``chunk_frames``.
+    """
     warm_up(motion)  # the first compile (or cache load) is not part of the timing
-    start = _time.perf_counter()
-    pos, quat = geom_poses(model, qpos, bounds.geom_ids)
-    t_kin = _time.perf_counter() - start
     checker = FrameChecker(bounds, motion, model)
     n = len(result.time) - 1
-    P = len(bounds.pairs)
-    in_contact = np.zeros((n, P), dtype=bool)
-    frames = range(n)
+    in_contact = np.zeros((n, len(bounds.pairs)), dtype=bool)
+    t_kin = t_ccd = 0.0
+    bar = None
     if progress:
         from tqdm import tqdm
 
-        frames = tqdm(frames, desc="replay", unit="frame", file=sys.stderr, leave=False)
-    start = _time.perf_counter()
-    for k in frames:
-        fc = checker.step(pos[k], quat[k], pos[k + 1], quat[k + 1], qpos[k], qpos[k + 1])
-        hit = (fc.status != 1) | (fc.toi >= 0.0)
-        in_contact[k] = hit
-        for p in np.nonzero((fc.status == 1) & (fc.toi >= 0.0))[0]:
-            i, j = bounds.pairs[p]
-            dt = result.time[k + 1] - result.time[k]
-            result.contacts.append({
-                "frame": int(k), "toi": float(fc.toi[p]), "time": float(result.time[k] + fc.toi[p] * dt),
-                "ellipsoids": [bounds.names[i], bounds.names[j]],
-                "bodies": [bounds.body_names[i], bounds.body_names[j]],
-                "labels": [bounds.labels[i], bounds.labels[j]],
-                "point": [float(x) for x in fc.point[p]], "normal": [float(x) for x in fc.normal[p]]})
-    t_ccd = _time.perf_counter() - start
+        bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False)
+    try:
+        with interrupts.deferred() as check:
+            for first in range(0, n, chunk_frames):
+                stop = min(first + chunk_frames, n)
+                start = _time.perf_counter()
+                pos, quat = geom_poses(model, qpos[first:stop + 1], bounds.geom_ids)
+                _check_centres(pos, first, bounds, result)
+                t_kin += _time.perf_counter() - start
+                start = _time.perf_counter()
+                for k in range(first, stop):
+                    i = k - first
+                    fc = checker.step(pos[i], quat[i], pos[i + 1], quat[i + 1], qpos[k], qpos[k + 1])
+                    _record(result, k, fc, in_contact)
+                t_ccd += _time.perf_counter() - start
+                if bar is not None:
+                    bar.update(stop - first)
+                check()
+    finally:
+        if bar is not None:
+            bar.close()
     result.in_contact = in_contact
     result.counters = {name: int(v) for name, v in checker.counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
                      "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
+
+
+def _check_centres(pos, first, bounds, result):
+    """Refuse ellipsoid centres beyond :data:`COORDINATE_LIMIT` (say, a huge body offset in the model)."""
+    bad = np.argwhere(~np.all(np.abs(pos) <= COORDINATE_LIMIT, axis=2))
+    if len(bad):
+        k, i = bad[0]
+        raise ReplayError(f"{result.trajectory}: frame {first + k}: ellipsoid {bounds.names[i]!r} of {result.model} "
+                          f"is at {pos[k, i].tolist()}, beyond ±{COORDINATE_LIMIT:g} m")
+
+
+def _record(result, k, fc, in_contact):
+    """Add frame k's first contacts to ``result`` and its contact flags to ``in_contact``."""
+    bounds = result.bounds
+    in_contact[k] = (fc.status != 1) | (fc.toi >= 0.0)
+    dt = result.time[k + 1] - result.time[k]
+    for p in np.nonzero((fc.status == 1) & (fc.toi >= 0.0))[0]:
+        i, j = bounds.pairs[p]
+        result.contacts.append({
+            "frame": int(k), "toi": float(fc.toi[p]), "time": float(result.time[k] + fc.toi[p] * dt),
+            "ellipsoids": [bounds.names[i], bounds.names[j]],
+            "bodies": [bounds.body_names[i], bounds.body_names[j]],
+            "labels": [bounds.labels[i], bounds.labels[j]],
+            "point": [float(x) for x in fc.point[p]], "normal": [float(x) for x in fc.normal[p]]})
 
 
 def warm_up(motion="rigid"):
@@ -497,29 +738,27 @@ def _overlap_spans(result):
     return spans
 
 
-def write_reports(result, out):
-    """contacts.json, contacts.csv and timeline.png in ``out``."""
+def write_reports(result, folder):
+    """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`)."""
     doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
            "frames": result.n_frames, "ellipsoids": result.bounds.names, "pairs": len(result.bounds.pairs),
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
-    try:
-        (out / "contacts.json").write_text(json.dumps(doc, indent=1) + "\n")
-        with open(out / "contacts.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "time", "toi", "ellipsoid_a", "ellipsoid_b", "body_a", "body_b",
-                        "px", "py", "pz", "nx", "ny", "nz"])
-            for c in result.contacts:
-                w.writerow([c["frame"], repr(c["time"]), repr(c["toi"]), *c["ellipsoids"], *c["bodies"],
-                            *map(repr, c["point"]), *map(repr, c["normal"])])
-    except OSError as exc:
-        raise ReplayError(f"{out}: cannot write the report: {exc.strerror}") from None
-    result.files += [str(out / "contacts.json"), str(out / "contacts.csv")]
-    result.files.append(plot_timeline(result, out / "timeline.png"))
+    with folder.open("contacts.json", "w", encoding="utf-8") as fh:
+        fh.write(json.dumps(doc, indent=1) + "\n")
+    with folder.open("contacts.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["frame", "time", "toi", "ellipsoid_a", "ellipsoid_b", "body_a", "body_b",
+                    "px", "py", "pz", "nx", "ny", "nz"])
+        for c in result.contacts:
+            w.writerow([c["frame"], repr(c["time"]), repr(c["toi"]), *c["ellipsoids"], *c["bodies"],
+                        *map(repr, c["point"]), *map(repr, c["normal"])])
+    with folder.open("timeline.png", "wb") as fh:
+        plot_timeline(result, fh)
 
 
-def plot_timeline(result, path):
-    """Colliding body pairs over time: bars while in contact, dots at first contacts."""
+def plot_timeline(result, target):
+    """Colliding body pairs over time: bars while in contact, dots at first contacts; PNG into a path or binary file."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -542,18 +781,15 @@ def plot_timeline(result, path):
     ax.set_title(f"{pathlib.Path(result.model).name}: contacts ({result.motion} motion); red dots: first contacts")
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as exc:
-        raise ReplayError(f"{path}: cannot write the plot: {exc.strerror}") from None
+        fig.savefig(target, dpi=110, format="png")
     finally:
         plt.close(fig)
-    return str(path)
 
 
-def render_frames(model, qpos, result, out, count=4):
-    """PNG frames at the first few first contacts, colliding ellipsoids in red; [] without OpenGL."""
+def render_frames(model, qpos, result, folder, count=4):
+    """PNG frames at the first few first contacts in ``folder``, colliding ellipsoids in red; none without OpenGL."""
     if not result.contacts or count <= 0:
-        return []
+        return
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"
     try:
@@ -565,9 +801,9 @@ def render_frames(model, qpos, result, out, count=4):
             warnings.simplefilter("ignore")
             renderer = mujoco.Renderer(model, 480, 640)
     except Exception as exc:  # no usable OpenGL context on this machine
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"rendering skipped: no OpenGL backend ({msg}); set MUJOCO_GL=egl or osmesa", file=sys.stderr)
-        return []
+        print(f"rendering skipped: no OpenGL backend ({_reason(exc)}); set MUJOCO_GL=egl or osmesa",
+              file=sys.stderr)
+        return
     from matplotlib.image import imsave
 
     data = mujoco.MjData(model)
@@ -581,7 +817,6 @@ def render_frames(model, qpos, result, out, count=4):
             picked.append(c)
         if len(picked) == count:
             break
-    files = []
     rgba = model.geom_rgba.copy()
     name_to_geom = dict(zip(result.bounds.names, result.bounds.geom_ids))
     try:
@@ -596,29 +831,49 @@ def render_frames(model, qpos, result, out, count=4):
             cam.lookat[:] = c["point"]
             cam.distance, cam.azimuth, cam.elevation = 2.5, 60.0, -15.0
             renderer.update_scene(data, cam, scene_option=opt)
-            path = out / f"frame_{k:05d}.png"
-            imsave(path, renderer.render())
-            files.append(str(path))
+            with folder.open(f"frame_{k:05d}.png", "wb") as fh:
+                imsave(fh, renderer.render(), format="png")
     finally:
         model.geom_rgba[:] = rgba
         renderer.close()
-    return files
 
 
 # ---------------------------------------------------------------- command line
 
 
+def _row_count(text):
+    """argparse type of ``--rows``: a non-negative integer."""
+    try:
+        rows = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number of rows, got {text!r}") from None
+    if rows < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more rows, got {rows}")
+    return rows
+
+
+def _folder_name(text):
+    """argparse type of ``--out``: a non-empty folder name."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a folder name, got an empty string")
+    return text
+
+
 def main(argv=None):
-    """``mjccd replay MODEL.xml TRAJ [--motion ...] [--out DIR]``; returns the exit status."""
+    """``mjccd replay MODEL.xml TRAJ [--motion ...] [--out DIR [--force]]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="mjccd replay",
                                      description="Replay a trajectory and report the first contacts "
                                                  "between bounding ellipsoids.")
     parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 5)")
     parser.add_argument("traj", help=".npz with qpos (T x nq) and time (T), or a .bvh clip")
     parser.add_argument("--motion", choices=MOTIONS, default="rigid", help="motion between frames")
-    parser.add_argument("--out", help="folder for contacts.json, contacts.csv, timeline.png, frames")
+    parser.add_argument("--out", type=_folder_name,
+                        help="folder for contacts.json, contacts.csv, timeline.png, frames (written only when "
+                             "the replay completes; a folder holding another run needs --force)")
+    parser.add_argument("--force", action="store_true",
+                        help="write into an --out folder that holds an earlier run, removing that run's files")
     parser.add_argument("--no-render", action="store_true", help="do not render frames")
-    parser.add_argument("--rows", type=int, default=30, help="rows of the contact table (default 30)")
+    parser.add_argument("--rows", type=_row_count, default=30, help="rows of the contact table (default 30)")
     parser.add_argument("--intervals", action="store_true",
                         help="also print every pair's collision intervals over each segment between the "
                              "trajectory's keyframes (npz 'keyframes', chain motion)")
@@ -626,25 +881,19 @@ def main(argv=None):
     if not args.no_render and "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
         os.environ["MUJOCO_GL"] = "egl"  # must be chosen before mujoco is first imported
     try:
-        result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render)
-    except ValueError as exc:
+        keys = None
+        if args.intervals:  # checked before the replay runs
+            model = load_model(args.model)
+            bounds = bounding_ellipsoids(model, source=args.model)
+            keys = load_keyframes(args.traj, model)
+            check_chain_range(keys, model, bounds.geom_ids, args.traj, "keyframes")
+        result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render, force=args.force)
+    except (ValueError, MjccdError) as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)
         return 2
     print(contact_table(result, args.rows))
     print(summary(result))
-    if args.intervals:
-        try:
-            with np.load(args.traj) as data:
-                keys = np.asarray(data["keyframes"], dtype=np.float64)
-        except (OSError, ValueError, KeyError):
-            print(f"mjccd replay: {args.traj}: --intervals needs an .npz with a 'keyframes' array (K x nq)",
-                  file=sys.stderr)
-            return 2
-        model = load_model(args.model)
-        if keys.ndim != 2 or keys.shape[1] != model.nq or len(keys) < 2:
-            print(f"mjccd replay: {args.traj}: keyframes must have shape (K >= 2, {model.nq}), got {keys.shape}",
-                  file=sys.stderr)
-            return 2
+    if keys is not None:
         for k in range(len(keys) - 1):
             print(f"keyframe segment {k} -> {k + 1}:")
             print(format_interval_table(interval_table(model, result.bounds, keys[k], keys[k + 1])))

@@ -169,3 +169,61 @@ def test_arm_sweep_intervals_match_the_static_test():
             assert status(t_in - 1e-3) == 1 and status(t_out + 1e-3) == 1, row["pair"]
             checked += 1
     assert checked == 7
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+def test_chunks_give_the_same_result(short_traj, motion):
+    """Chunks of 4 frames (the plane cache carried across) find what one chunk of all frames finds."""
+    whole = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=LAST - FIRST)
+    chunked = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=4)
+    assert chunked.contacts == whole.contacts and len(whole.contacts) >= 1
+    assert chunked.counters == whole.counters and whole.counters["cached_plane"] > 0
+    np.testing.assert_array_equal(chunked.in_contact, whole.in_contact)
+
+
+def test_chain_chunks_give_the_same_result(tmp_path):
+    with np.load(ROOT / "data" / "arm_traj.npz") as d:
+        piece = tmp_path / "piece.npz"
+        np.savez(piece, qpos=d["qpos"][46:53], time=d["time"][46:53])
+    arm = ROOT / "models" / "arm_obstacle.xml"
+    whole = replay.replay(arm, piece, "chain", None, progress=False, chunk_frames=6)
+    chunked = replay.replay(arm, piece, "chain", None, progress=False)  # the chain motion's chunk: one frame
+    assert chunked.contacts == whole.contacts and len(whole.contacts) >= 1
+    assert chunked.counters == whole.counters
+    np.testing.assert_array_equal(chunked.in_contact, whole.in_contact)
+
+
+def test_trajectory_refusals_name_frame_and_joint(tmp_path):
+    """Values MuJoCo would silently change or drop are refused, not replayed."""
+    with np.load(TRAJ) as d:
+        qpos, time = d["qpos"][FIRST:FIRST + 4].copy(), d["time"][FIRST:FIRST + 4]
+    cases = []
+    zero = qpos.copy()
+    zero[2, 90:94] = 0.0
+    cases.append((zero, r"qpos\[2, 90:94\] \(frame 2\): the quaternion of free joint 'b_Hips_root' is zero"))
+    cases.append((qpos + 1e-3j, "qpos holds complex numbers"))
+    far = qpos.copy()
+    far[1, 0] = 1e300
+    cases.append((far, r"qpos\[1, 0\] = 1e\+300 \(frame 1, joint 'a_Hips_root'\) is beyond"))
+    for k, (values, message) in enumerate(cases):
+        path = tmp_path / f"bad{k}.npz"
+        np.savez(path, qpos=values, time=time)
+        with pytest.raises(replay.ReplayError, match=f"bad{k}.npz: {message}"):
+            replay.replay(MODEL, path, progress=False)
+    cut = tmp_path / "cut.npz"
+    np.savez(tmp_path / "whole.npz", qpos=qpos, time=time)
+    cut.write_bytes((tmp_path / "whole.npz").read_bytes()[:-30])
+    with pytest.raises(replay.ReplayError, match="cut.npz: damaged or truncated .npz archive"):
+        replay.replay(MODEL, cut, progress=False)
+
+
+def test_huge_ellipsoid_is_refused_by_name(tmp_path):
+    model = tmp_path / "huge.xml"
+    model.write_text("<mujoco><worldbody><body name='a'><freejoint/>"
+                     "<geom name='big' type='ellipsoid' size='1e300 0.1 0.1'/></body>"
+                     "<body name='b' pos='1 0 0'><geom type='ellipsoid' size='0.2 0.1 0.1'/></body>"
+                     "</worldbody></mujoco>")
+    traj = tmp_path / "t.npz"
+    np.savez(traj, qpos=np.tile([0, 0, 0, 1, 0, 0, 0.0], (3, 1)), time=np.arange(3.0))
+    with pytest.raises(replay.ReplayError, match=r"huge.xml: ellipsoid 'big' has semi-axes \[1e\+300, 0.1, 0.1\]"):
+        replay.replay(model, traj, progress=False)

@@ -1,0 +1,136 @@
+"""``mjccd replay --out``: used folders, --force, nothing partial after an error or Ctrl-C."""
+import json
+import os
+import pathlib
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from mjccd import replay
+from mjccd.files import MANIFEST
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+MODEL = ROOT / "models" / "boxing.xml"
+TRAJ = ROOT / "data" / "boxing_traj.npz"
+FIRST, LAST = 136, 150   # frames of the bundled trajectory around the first glove contacts
+REPORTS = ["contacts.csv", "contacts.json", "timeline.png"]
+
+
+@pytest.fixture(scope="module")
+def short_traj(tmp_path_factory):
+    path = tmp_path_factory.mktemp("traj") / "short.npz"
+    with np.load(TRAJ) as d:
+        np.savez(path, qpos=d["qpos"][FIRST:LAST], time=d["time"][FIRST:LAST])
+    return path
+
+
+def _earlier_run(folder):
+    """A folder as an earlier replay left it (more frames than this one), plus a file of the user's."""
+    folder.mkdir()
+    stale = ["contacts.json", "contacts.csv", "timeline.png", "frame_00007.png", "frame_00900.png"]
+    for name in stale:
+        (folder / name).write_text("from an earlier run\n")
+    (folder / "frame_00005.png").write_text("an earlier frame before manifests\n")
+    (folder / MANIFEST).write_text(json.dumps({"tool": "replay", "files": stale}) + "\n")
+    (folder / "notes.txt").write_text("the user's own file\n")
+
+
+def test_used_folder_is_refused_without_force(tmp_path, capsys, short_traj):
+    out = tmp_path / "out"
+    _earlier_run(out)
+    before = {p.name: p.read_text() for p in out.iterdir()}
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(out) in err[0] and "--force" in err[0]
+    assert {p.name: p.read_text() for p in out.iterdir()} == before
+
+
+def test_force_replaces_the_earlier_run(tmp_path, capsys, short_traj):
+    out = tmp_path / "out"
+    _earlier_run(out)
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render", "--force"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert sorted(os.listdir(out)) == sorted(REPORTS + [MANIFEST, "notes.txt"])  # no stale frame left
+    manifest = json.loads((out / MANIFEST).read_text())
+    assert manifest["tool"] == "replay" and sorted(manifest["files"]) == REPORTS
+    assert json.loads((out / "contacts.json").read_text())["frames"] == LAST - FIRST
+    assert (out / "notes.txt").read_text() == "the user's own file\n"
+    # its own earlier run is refused too, and replaced with --force
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render"]) == 2
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render", "--force"]) == 0
+
+
+def test_failed_write_leaves_nothing(tmp_path, capsys, monkeypatch, short_traj):
+    def disk_full(result, target):
+        target.write(b"\x89PNG half a plot")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(replay, "plot_timeline", disk_full)
+    out = tmp_path / "out"
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render"]) == 2
+    message = capsys.readouterr().err.strip().splitlines()[-1]  # after the progress bar
+    assert message == f"mjccd replay: {out}: cannot write: No space left on device"
+    assert not out.exists()
+    assert os.listdir(tmp_path) == []
+
+
+def test_ctrl_c_stops_between_chunks(tmp_path, monkeypatch, short_traj):
+    """A SIGINT inside a chunk lets the chunk finish, then stops the replay before any file is written."""
+    stepped = []
+    step = replay.FrameChecker.step
+
+    def step_and_press_ctrl_c(self, *args):
+        stepped.append(1)
+        if len(stepped) == 6:
+            os.kill(os.getpid(), signal.SIGINT)
+        return step(self, *args)
+
+    monkeypatch.setattr(replay.FrameChecker, "step", step_and_press_ctrl_c)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, chunk_frames=4)
+    assert len(stepped) == 8  # the second chunk (frames 4..7) ran to its end
+    assert not out.exists()
+
+
+def _long_trajectory(path, repeats):
+    """The bundled boxing clip played forwards and backwards ``repeats`` times (no jump between the copies)."""
+    with np.load(TRAJ) as d:
+        qpos = d["qpos"]
+    qpos = np.tile(np.concatenate([qpos, qpos[::-1]]), (repeats, 1))
+    np.savez(path, qpos=qpos, time=np.arange(len(qpos)) / 120.0)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a child process")
+def test_sigint_ends_cleanly(tmp_path):
+    """Ctrl-C while the frames run: 'mjccd: interrupted', exit 130, no traceback, no file written."""
+    traj = tmp_path / "long.npz"
+    _long_trajectory(traj, 32)  # about 77,000 frames: several seconds of work
+    out = tmp_path / "out"
+    err_path = tmp_path / "stderr.txt"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    with open(err_path, "w") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "mjccd", "replay", str(MODEL), str(traj), "--out", str(out),
+                                 "--no-render"], stdout=subprocess.DEVNULL, stderr=err, cwd=tmp_path, env=env)
+    try:
+        deadline = time.monotonic() + 60
+        while not re.search(r"\| *[1-9]\d*/\d+ ", err_path.read_text()):  # the progress bar counts frames
+            assert proc.poll() is None, err_path.read_text()
+            assert time.monotonic() < deadline, "no progress within 60 s"
+            time.sleep(0.05)
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    text = err_path.read_text()
+    assert code == 130, text
+    assert text.rstrip().endswith("mjccd: interrupted"), text
+    assert "Traceback" not in text and "SystemError" not in text
+    assert sorted(os.listdir(tmp_path)) == ["long.npz", "stderr.txt"]  # no output folder, no temporary file

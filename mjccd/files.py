@@ -48,6 +48,13 @@ def check_output_file(path, inputs=(), force=False):
         raise OutputError(f"{path}: exists; pass --force to replace it")
 
 
+def _new_file_mode():
+    """The permissions ``open`` gives a new file: 0o666 less the process's umask."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 @contextmanager
 def atomic_open(path, mode="w", **kwargs):
     """``open`` for writing, under a temporary name renamed onto ``path`` when the block ends without error.
@@ -57,6 +64,7 @@ def atomic_open(path, mode="w", **kwargs):
     p = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=str(p.parent))
     try:
+        os.chmod(tmp, _new_file_mode())  # mkstemp makes it private; an output is made as open() would
         with os.fdopen(fd, mode, **kwargs) as fh:
             yield fh
             fh.flush()

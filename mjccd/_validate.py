@@ -1,15 +1,39 @@
 """Input checks shared by the Python layer: every error names the field and the problem."""
+import reprlib
+
 import numpy as np
 
 from mjccd.errors import InputError
+
+LENGTH_RANGE = (1e-12, 1e12)
+"""The radii the solver supports, in any unit; coordinates lie within ±LENGTH_RANGE[1].
+
+Measured with :func:`mjccd.first_contact` on cases of every motion kind: a
+whole case scaled by 2^k gives the same answer for |k| <= 480 (1e±144) and
+fails beyond 2^500, where squared lengths overflow; but the exact fallback
+divides 0/0 once the radii of a pair differ by more than about 1e30
+(spheres of 1e-32 and 1 fail, 1e-30 and 1 pass).  The core works in a frame
+scaled by the largest radius, so what matters is how far apart two lengths
+of one pair can be: this range keeps any two within 1e24 of each other.
+"""
+
+MIN_NORM = 1e-12
+"""A quaternion or axis shorter than this is taken for zero (as in :mod:`mjccd.scene`)."""
+
+
+def _shown(value):
+    """A short repr for messages (a huge or deeply nested input stays one short line)."""
+    return reprlib.repr(value)
 
 
 def array(value, shape, field):
     """A finite float64 array of the given shape (None in ``shape`` = any length)."""
     try:
         arr = np.asarray(value, dtype=np.float64)
+    except OverflowError:
+        raise InputError(f"{field}: a number is too large for a double") from None
     except (TypeError, ValueError):
-        raise InputError(f"{field}: expected numbers, got {value!r}") from None
+        raise InputError(f"{field}: expected numbers, got {_shown(value)}") from None
     if arr.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, arr.shape)):
         want = "x".join("N" if s is None else str(s) for s in shape) or "scalar"
         raise InputError(f"{field}: expected shape {want}, got {arr.shape}")
@@ -22,8 +46,10 @@ def scalar(value, field):
     """A finite number."""
     try:
         x = float(value)
+    except OverflowError:
+        raise InputError(f"{field}: a number is too large for a double") from None
     except (TypeError, ValueError):
-        raise InputError(f"{field}: expected a number, got {value!r}") from None
+        raise InputError(f"{field}: expected a number, got {_shown(value)}") from None
     if not np.isfinite(x):
         raise InputError(f"{field}: must be finite, got {x}")
     return x
@@ -34,41 +60,78 @@ def vector(value, n, field):
     return array(value, (n,), field)
 
 
+def _check_lengths(r, field):
+    """Radii inside LENGTH_RANGE; the message names the first one outside."""
+    lo, hi = LENGTH_RANGE
+    outside = r[(r < lo) | (r > hi)]
+    if len(outside):
+        raise InputError(f"{field}: {outside[0]:g} is outside the supported range [{lo:g}, {hi:g}]")
+
+
 def radii(value, field):
-    """Three finite, strictly positive radii."""
+    """Three strictly positive radii inside LENGTH_RANGE."""
     r = vector(value, 3, field)
     if np.any(r <= 0.0):
         raise InputError(f"{field}: radii must be positive, got {r.tolist()}")
+    _check_lengths(r, field)
     return r
 
 
 def radii_array(value, field):
-    """(N, 3) finite, strictly positive radii."""
+    """(N, 3) strictly positive radii inside LENGTH_RANGE."""
     r = array(value, (None, 3), field)
     bad = np.nonzero(np.any(r <= 0.0, axis=1))[0]
     if len(bad):
         raise InputError(f"{field}[{bad[0]}]: radii must be positive, got {r[bad[0]].tolist()}")
+    outside = np.nonzero(np.any((r < LENGTH_RANGE[0]) | (r > LENGTH_RANGE[1]), axis=1))[0]
+    if len(outside):
+        _check_lengths(r[outside[0]], f"{field}[{outside[0]}]")
     return r
 
 
+def coordinates(value, shape, field):
+    """A finite array of the given shape whose entries lie within ±LENGTH_RANGE[1] (positions, displacements)."""
+    arr = array(value, shape, field)
+    hi = LENGTH_RANGE[1]
+    outside = arr[np.abs(arr) > hi]
+    if len(outside):
+        raise InputError(f"{field}: {outside[0]:g} is outside the supported range [{-hi:g}, {hi:g}]")
+    return arr
+
+
+def direction(value, n, field, zero="zero vector"):
+    """A finite vector of length n, not shorter than MIN_NORM, scaled by a power of two to a largest entry in [0.5, 1).
+
+    A direction's length carries no meaning, and scaling by a power of two is
+    exact, so normalising the result gives the same bits as normalising the
+    input would, without overflow for huge entries (1e300).
+    """
+    v = vector(value, n, field)
+    _, exponent = np.frexp(np.abs(v).max())
+    v = np.ldexp(v, -exponent)
+    norm = float(np.ldexp(np.sqrt(v @ v), exponent))
+    if norm < MIN_NORM:
+        raise InputError(f"{field}: {zero} (norm {norm:.3g}, at least {MIN_NORM:g} needed)")
+    return v
+
+
 def quaternion(value, field):
-    """A finite, non-zero quaternion [w, x, y, z], returned normalised."""
-    q = vector(value, 4, field)
-    n = float(np.sqrt(q @ q))
-    if n < 1e-12:
-        raise InputError(f"{field}: zero quaternion (norm {n:.3g})")
-    return q / n
+    """A finite, non-zero quaternion [w, x, y, z], returned normalised (a quaternion is only a direction)."""
+    q = direction(value, 4, field, zero="zero quaternion")
+    return q / np.sqrt(q @ q)
 
 
 def pose_array(value, field, n=None):
-    """(N, 7) rows of position and quaternion [w, x, y, z], quaternions normalised."""
+    """(N, 7) rows of position and quaternion [w, x, y, z], quaternions normalised as :func:`quaternion` does."""
     poses = array(value, (n, 7), field)
-    norms = np.sqrt(np.sum(poses[:, 3:] ** 2, axis=1))
-    bad = np.nonzero(norms < 1e-12)[0]
+    _, exponents = np.frexp(np.abs(poses[:, 3:]).max(axis=1, initial=0.0))
+    quats = np.ldexp(poses[:, 3:], -exponents[:, None])
+    norms = np.sqrt(np.sum(quats ** 2, axis=1))
+    bad = np.nonzero(np.ldexp(norms, exponents) < MIN_NORM)[0]
     if len(bad):
         raise InputError(f"{field}[{bad[0]}]: zero quaternion")
     out = poses.copy()
-    out[:, 3:] /= norms[:, None]
+    out[:, 3:] = quats / norms[:, None]
     return out
 
 
@@ -76,8 +139,10 @@ def polynomial(value, field):
     """Power-basis coefficients (lowest degree first): a non-empty finite 1-D list."""
     try:
         p = np.asarray(value, dtype=np.float64)
+    except OverflowError:
+        raise InputError(f"{field}: a number is too large for a double") from None
     except (TypeError, ValueError):
-        raise InputError(f"{field}: expected a list of coefficients, got {value!r}") from None
+        raise InputError(f"{field}: expected a list of coefficients, got {_shown(value)}") from None
     if p.ndim != 1 or p.size == 0:
         raise InputError(f"{field}: expected a non-empty list of coefficients")
     if not np.all(np.isfinite(p)):
@@ -89,8 +154,8 @@ def time_bound(value, field):
     """A number in [0, 1]."""
     try:
         t = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{field}: expected a number in [0, 1], got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{field}: expected a number in [0, 1], got {_shown(value)}") from None
     if not (0.0 <= t <= 1.0):
         raise InputError(f"{field}: must lie in [0, 1], got {t}")
     return t

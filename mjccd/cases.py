@@ -1,10 +1,16 @@
-"""The JSON case format of ``mjccd solve`` (version 1): parse, solve, report.
+"""The JSON case format of ``mjccd solve`` (version 1): read, parse, solve, report.
 
-A bad case never stops the others: its result carries ``"error": "<case id>:
-<field path>: <what is wrong>"``.
+A bad case never stops the others: whatever goes wrong while one case is
+parsed or solved becomes its result's ``"error": "<case id>: <field path>:
+<what is wrong>"`` (the field is named wherever the input is at fault), and
+the batch always completes.  A file that is not a version-1 document at all
+raises :class:`~mjccd.errors.InputError` naming the file or the top-level field.
 """
-import numpy as np
+import json
+import re
+import reprlib
 
+from mjccd import _validate, interrupts
 from mjccd.ccd import solve_pair
 from mjccd.errors import InputError
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Rational, Rigid,
@@ -13,86 +19,188 @@ from mjccd.quadric import Ellipsoid
 
 FORMAT_VERSION = 1
 
+# a message that starts with the argument it is about ("start.quaternion: ...", "rotation[0][1]: ...")
+_NAMED = re.compile(r"[A-Za-z_][\w\[\]./]*: ")
+
 
 class CaseError(InputError):
     """A case that cannot be solved; the message names the field."""
 
 
+def _describe(value):
+    """A JSON value in a few characters, for messages: null, true, 2.5, 'text', a list, an object."""
+    if value is None or isinstance(value, bool):
+        return json.dumps(value)
+    if isinstance(value, (str, int, float)):
+        return reprlib.repr(value)
+    return "a list" if isinstance(value, list) else "an object"
+
+
+def printable(text):
+    """``text`` on one line: control characters (a newline in a case id) escaped."""
+    return text if text.isprintable() else text.encode("unicode_escape").decode("ascii")
+
+
+def read_cases(path):
+    """The JSON document in the file ``path``; InputError naming the file when it is not JSON text."""
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read()
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a folder, expected a JSON file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise InputError(f"{path}: not UTF-8 text (a UTF-16 or UTF-32 byte-order mark; save it as UTF-8)")
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        raise InputError(f"{path}: not UTF-8 text (NUL byte at offset {nul}: binary or UTF-16)")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})") from None
+    if not text.strip():
+        raise InputError(f"{path}: empty file, expected a JSON document")
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{path}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})") from None
+    except RecursionError:
+        raise InputError(f"{path}: nested too deeply") from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise InputError(f"{path}: not valid JSON: {exc}") from None
+
+
+def _object(value, field):
+    if not isinstance(value, dict):
+        raise CaseError(f"{field}: expected an object, got {_describe(value)}")
+    return value
+
+
 def _require(d, key, field):
-    if not isinstance(d, dict):
-        raise CaseError(f"{field}: expected an object")
-    if key not in d:
+    if key not in _object(d, field):
         raise CaseError(f"{field}.{key}: missing")
     return d[key]
 
 
+def _numbers(value, depth, field):
+    """``value``, checked to be lists nested ``depth`` deep of JSON numbers (naming the first item that is not)."""
+    if depth == 0:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise CaseError(f"{field}: expected a number, got {_describe(value)}")
+    elif not isinstance(value, list):
+        raise CaseError(f"{field}: expected a list, got {_describe(value)}")
+    else:
+        for k, item in enumerate(value):
+            _numbers(item, depth - 1, f"{field}[{k}]")
+    return value
+
+
+def _coordinates(value, shape, field):
+    """Numbers of a motion that are not directions or angles (positions, matrices, ...), within the supported range."""
+    return _validate.coordinates(_numbers(value, len(shape), field), shape, field)
+
+
+def _direction(value, n, field, zero="zero vector"):
+    """A quaternion or axis, scaled so that the motion's own normalisation cannot overflow."""
+    return _validate.direction(_numbers(value, 1, field), n, field, zero)
+
+
+def _pair(value, field):
+    """[start, end] as two finite numbers."""
+    if len(_numbers(value, 1, field)) != 2:
+        raise CaseError(f"{field}: expected [start, end]")
+    return [_validate.scalar(x, f"{field}[{k}]") for k, x in enumerate(value)]
+
+
+def _polynomial(value, field):
+    """Power-basis coefficients, each within the supported range."""
+    return _validate.coordinates(_validate.polynomial(_numbers(value, 1, field), field), (None,), field)
+
+
+def _build(field, make, *args):
+    """``make(*args)``; whatever it raises becomes a CaseError naming ``field`` (a constructor names only its own)."""
+    try:
+        return make(*args)
+    except Exception as exc:
+        msg = " ".join(str(exc).split())
+        if isinstance(exc, ValueError) and _NAMED.match(msg):
+            raise CaseError(f"{field}.{msg}") from None
+        raise CaseError(f"{field}: {type(exc).__name__}: {msg}" if msg else f"{field}: {type(exc).__name__}") from None
+
+
 def _pose(d, field):
-    return _require(d, "position", field), _require(d, "quaternion", field)
+    return (_coordinates(_require(d, "position", field), (3,), f"{field}.position"),
+            _direction(_require(d, "quaternion", field), 4, f"{field}.quaternion", "zero quaternion"))
 
 
 def _element(d, field):
     kind = _require(d, "type", field)
     if kind == "fixed":
-        return Fixed(*_pose(d, field))
+        return _build(field, Fixed, *_pose(d, field))
     if kind == "hinge":
-        angle = _require(d, "angle", field)
-        if not isinstance(angle, (list, tuple)) or len(angle) != 2:
-            raise CaseError(f"{field}.angle: expected [start, end]")
-        return Hinge(_require(d, "axis", field), float(angle[0]), float(angle[1]))
+        axis = _direction(_require(d, "axis", field), 3, f"{field}.axis")
+        return _build(field, Hinge, axis, *_pair(_require(d, "angle", field), f"{field}.angle"))
     if kind == "slide":
-        s = _require(d, "displacement", field)
-        if not isinstance(s, (list, tuple)) or len(s) != 2:
-            raise CaseError(f"{field}.displacement: expected [start, end]")
-        return Slide(_require(d, "axis", field), s[0], s[1])
+        axis = _direction(_require(d, "axis", field), 3, f"{field}.axis")
+        return _build(field, Slide, axis, *_coordinates(_require(d, "displacement", field), (2,),
+                                                        f"{field}.displacement"))
     if kind == "ball":
-        return Ball(_require(d, "start", field), _require(d, "end", field))
+        return _build(field, Ball, *(_direction(_require(d, key, field), 4, f"{field}.{key}", "zero quaternion")
+                                     for key in ("start", "end")))
     if kind == "free":
-        return Free(*_pose(_require(d, "start", field), f"{field}.start"),
-                    *_pose(_require(d, "end", field), f"{field}.end"))
-    raise CaseError(f"{field}.type: unknown chain element {kind!r}")
+        return _build(field, Free, *_pose(_require(d, "start", field), f"{field}.start"),
+                      *_pose(_require(d, "end", field), f"{field}.end"))
+    raise CaseError(f"{field}.type: unknown chain element {_describe(kind)}")
+
+
+def _rational(d, field):
+    rotation = _numbers(_require(d, "rotation", field), 3, f"{field}.rotation")
+    if len(rotation) != 3 or any(len(row) != 3 for row in rotation):
+        raise CaseError(f"{field}.rotation: expected a 3x3 array of polynomials")
+    translation = _numbers(_require(d, "translation", field), 2, f"{field}.translation")
+    if len(translation) != 3:
+        raise CaseError(f"{field}.translation: expected 3 polynomials")
+    return _build(field, Rational,
+                  [[_polynomial(p, f"{field}.rotation[{i}][{j}]") for j, p in enumerate(row)]
+                   for i, row in enumerate(rotation)],
+                  _polynomial(_require(d, "rotation_denominator", field), f"{field}.rotation_denominator"),
+                  [_polynomial(p, f"{field}.translation[{i}]") for i, p in enumerate(translation)],
+                  _polynomial(_require(d, "translation_denominator", field), f"{field}.translation_denominator"))
 
 
 def motion_from_json(d, field):
-    """A motion object from its JSON description (DESIGN.md, plus ``chain``)."""
+    """A motion object from its JSON description (docs/case-format.md); CaseError naming the field otherwise."""
     kind = _require(d, "type", field)
-    try:
-        if kind == "static":
-            return Static(*_pose(d, field))
-        if kind in ("rigid", "affine"):
-            start = _pose(_require(d, "start", field), f"{field}.start")
-            end = _pose(_require(d, "end", field), f"{field}.end")
-            return (Rigid if kind == "rigid" else Affine)(*start, *end)
-        if kind == "linear_affine":
-            return LinearAffine(_require(d, "start", field), _require(d, "end", field))
-        if kind == "rational":
-            return Rational(_require(d, "rotation", field), _require(d, "rotation_denominator", field),
-                            _require(d, "translation", field), _require(d, "translation_denominator", field))
-        if kind == "chain":
-            elements = _require(d, "elements", field)
-            if not isinstance(elements, list) or not elements:
-                raise CaseError(f"{field}.elements: expected a non-empty list")
-            return Chain([_element(e, f"{field}.elements[{k}]") for k, e in enumerate(elements)])
-    except CaseError:
-        raise
-    except ValueError as exc:
-        msg = str(exc)
-        raise CaseError(msg if msg.startswith(field) else f"{field}.{msg}") from None
-    raise CaseError(f"{field}.type: unknown motion type {kind!r}")
+    if kind == "static":
+        return _build(field, Static, *_pose(d, field))
+    if kind in ("rigid", "affine"):
+        start = _pose(_require(d, "start", field), f"{field}.start")
+        end = _pose(_require(d, "end", field), f"{field}.end")
+        return _build(field, Rigid if kind == "rigid" else Affine, *start, *end)
+    if kind == "linear_affine":
+        return _build(field, LinearAffine, *(_coordinates(_require(d, key, field), (3, 4), f"{field}.{key}")
+                                             for key in ("start", "end")))
+    if kind == "rational":
+        return _rational(d, field)
+    if kind == "chain":
+        elements = _require(d, "elements", field)
+        if not isinstance(elements, list):
+            raise CaseError(f"{field}.elements: expected a list, got {_describe(elements)}")
+        if not elements:
+            raise CaseError(f"{field}.elements: a chain needs at least one element")
+        return _build(field, Chain, [_element(e, f"{field}.elements[{k}]") for k, e in enumerate(elements)])
+    raise CaseError(f"{field}.type: unknown motion type {_describe(kind)}")
 
 
 def _body(case, key):
     body = _require(case, key, "case")
-    try:
-        ellipsoid = Ellipsoid(_require(body, "radii", key))
-    except CaseError:
-        raise
-    except ValueError as exc:
-        raise CaseError(f"{key}.{exc}") from None
-    return ellipsoid, motion_from_json(_require(body, "motion", key), f"{key}.motion")
+    radii = _validate.radii(_numbers(_require(body, "radii", key), 1, f"{key}.radii"), f"{key}.radii")
+    return Ellipsoid(radii), motion_from_json(_require(body, "motion", key), f"{key}.motion")
 
 
 def solve_case(case):
-    """Result dict of one case (raises CaseError for bad input)."""
+    """Result dict of one case (raises InputError naming the field for bad input)."""
     a, ma = _body(case, "a")
     b, mb = _body(case, "b")
     status, contact, intervals = solve_pair(a, ma, b, mb)
@@ -109,21 +217,49 @@ def solve_case(case):
     return result
 
 
-def solve_cases(doc):
-    """Solve a ``{"version": 1, "cases": [...]}`` document; returns the results document."""
+def _result(case, k):
+    """The result of the k-th case, or its error: nothing raised while parsing or solving it escapes."""
+    cid = f"#{k}"
+    if isinstance(case, dict) and "id" in case:
+        if not isinstance(case["id"], str):
+            return {"id": cid, "error": f"{cid}.id: expected a string, got {_describe(case['id'])}"}
+        cid = case["id"]
+    try:
+        return {"id": cid, **solve_case(case)}
+    except InputError as exc:
+        error = str(exc)
+    except Exception as exc:  # the solver's own failure on this input: this case's error, never the batch's
+        error = f"cannot be solved: {type(exc).__name__}: {exc}"
+    return {"id": cid, "error": f"{printable(cid)}: {' '.join(error.split())}"}
+
+
+def _case_list(doc):
+    """The ``cases`` of a version-1 document; InputError naming the top-level field otherwise."""
     if not isinstance(doc, dict):
-        raise ValueError("document: expected an object with 'version' and 'cases'")
-    if doc.get("version") != FORMAT_VERSION:
-        raise ValueError(f"version: expected {FORMAT_VERSION}, got {doc.get('version')!r}")
-    cases = doc.get("cases")
-    if not isinstance(cases, list):
-        raise ValueError("cases: expected a list")
+        raise InputError(f"document: expected an object with 'version' and 'cases', got {_describe(doc)}")
+    if "version" not in doc:
+        raise InputError(f"version: missing (expected {FORMAT_VERSION})")
+    version = doc["version"]
+    if isinstance(version, bool) or version != FORMAT_VERSION:
+        raise InputError(f"version: expected {FORMAT_VERSION}, got {_describe(version)}")
+    if "cases" not in doc:
+        raise InputError("cases: missing")
+    if not isinstance(doc["cases"], list):
+        raise InputError(f"cases: expected a list, got {_describe(doc['cases'])}")
+    return doc["cases"]
+
+
+def solve_cases(doc):
+    """Solve a ``{"version": 1, "cases": [...]}`` document; returns the results document.
+
+    Raises InputError when ``doc`` is not such a document; a case that
+    cannot be solved becomes its result's error.  Ctrl-C takes effect
+    between cases (:func:`mjccd.interrupts.deferred`), never inside compiled code.
+    """
+    cases = _case_list(doc)
     results = []
-    for k, case in enumerate(cases):
-        cid = case.get("id", f"#{k}") if isinstance(case, dict) else f"#{k}"
-        try:
-            result = {"id": cid, **solve_case(case)}
-        except CaseError as exc:
-            result = {"id": cid, "error": f"{cid}: {exc}"}
-        results.append(result)
+    with interrupts.deferred() as check:
+        for k, case in enumerate(cases):
+            check()
+            results.append(_result(case, k))
     return {"version": FORMAT_VERSION, "results": results}

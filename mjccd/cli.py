@@ -4,31 +4,44 @@ Every failure is reported as one line on stderr with a non-zero exit status;
 no traceback reaches the user.
 """
 import argparse
+import functools
 import json
+import os
 import sys
+
+from mjccd.errors import MjccdError
+
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command ended by Ctrl-C
+EXIT_CLOSED_PIPE = 141  # 128 + SIGPIPE, as a shell reports a command ended by a closed pipe
+
+
+def _refuse(message):
+    """Report an unusable input or output of ``solve``; exit status 2."""
+    print(f"mjccd solve: {message}", file=sys.stderr)
+    return 2
 
 
 def _cmd_solve(args):
-    from mjccd.cases import solve_cases
+    """Exit 0: all cases solved; 1: some cases failed (the others answered and written); 2: unusable input or output."""
+    from mjccd import files
+    from mjccd.cases import read_cases, solve_cases
 
     try:
-        with open(args.cases) as fh:
-            doc = json.load(fh)
-    except OSError as exc:
-        print(f"mjccd solve: cannot read {args.cases}: {exc.strerror}", file=sys.stderr)
-        return 2
-    except json.JSONDecodeError as exc:
-        print(f"mjccd solve: {args.cases} is not valid JSON: {exc}", file=sys.stderr)
-        return 2
+        if args.output:
+            files.check_output_file(args.output, inputs=[args.cases], force=args.force)
+        doc = read_cases(args.cases)
+    except MjccdError as exc:
+        return _refuse(exc)
     try:
         results = solve_cases(doc)
-    except ValueError as exc:
-        print(f"mjccd solve: {args.cases}: {exc}", file=sys.stderr)
-        return 2
+    except MjccdError as exc:
+        return _refuse(f"{args.cases}: {exc}")
     text = json.dumps(results, indent=1)
     if args.output:
-        with open(args.output, "w") as fh:
-            fh.write(text + "\n")
+        try:
+            files.write_text(args.output, text + "\n")
+        except OSError as exc:
+            return _refuse(f"{args.output}: cannot write: {exc.strerror or exc}")
     if args.table:
         print(_table(results["results"]))
     elif not args.output:
@@ -45,14 +58,17 @@ def _cmd_solve(args):
 
 def _table(results):
     """One line per case: status, first contact, intervals, contact point."""
+    from mjccd.cases import printable
+
     lines = [f"{'case':<18} {'at start':<12} {'first contact':>19}  {'intervals':<9} contact point"]
     for r in results:
+        cid = printable(r["id"])
         if "error" in r:
-            lines.append(f"{r['id']:<18} error: {r['error']}")
+            lines.append(f"{cid:<18} error: {r['error']}")
             continue
         t = "none" if r["first_contact"] is None else f"{r['first_contact']:.15f}"
         p = "" if r["contact_point"] is None else "(" + ", ".join(f"{x:+.6f}" for x in r["contact_point"]) + ")"
-        lines.append(f"{r['id']:<18} {r['status_at_start']:<12} {t:>19}  {len(r['intervals']):<9} {p}")
+        lines.append(f"{cid:<18} {r['status_at_start']:<12} {t:>19}  {len(r['intervals']):<9} {p}")
     return "\n".join(lines)
 
 
@@ -81,7 +97,8 @@ def build_parser():
     sub = parser.add_subparsers(dest="command", required=True)
     solve = sub.add_parser("solve", help="solve CCD cases given as JSON (format version 1)")
     solve.add_argument("cases", help="input JSON: {\"version\": 1, \"cases\": [...]}")
-    solve.add_argument("-o", "--output", help="write results here instead of stdout")
+    solve.add_argument("-o", "--output", help="write results here instead of stdout (refused if it exists)")
+    solve.add_argument("--force", action="store_true", help="replace an existing --output (even the input)")
     solve.add_argument("--table", action="store_true", help="print a readable table instead of JSON")
     solve.set_defaults(func=_cmd_solve)
     for name, (_, text) in DELEGATED.items():
@@ -93,24 +110,53 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
-    argv = sys.argv[1:] if argv is None else list(argv)
+def _run(argv):
+    """The command's exit status; an error that escapes it is reported as one line."""
     if argv and argv[0] in DELEGATED:
         command = argv[0]
-        try:
-            return _delegate(DELEGATED[command][0], argv[1:])
-        except KeyboardInterrupt:
-            print("mjccd: interrupted", file=sys.stderr)
-            return 130
-        except Exception as exc:  # one line, never a traceback
-            print(f"mjccd {command}: {type(exc).__name__}: {exc}", file=sys.stderr)
-            return 1
-    args = build_parser().parse_args(argv)
+        run = functools.partial(_delegate, DELEGATED[command][0], argv[1:])
+    else:
+        args = build_parser().parse_args(argv)
+        command, run = args.command, functools.partial(args.func, args)
     try:
-        return args.func(args)
+        return run()
+    except BrokenPipeError:  # not an error of the command: main ends it quietly
+        raise
+    except MjccdError as exc:  # refused input or output: the message names it
+        print(f"mjccd {command}: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # last line of defence: one line, never a traceback
+        print(f"mjccd {command}: {type(exc).__name__}: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
+
+
+def _drop_stdout():
+    """Point stdout at the null device, so that Python's flush at exit finds no closed pipe."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a file (captured in-process)
+        pass
+
+
+def main(argv=None):
+    """Run one ``mjccd`` command; returns its exit status.
+
+    Ctrl-C ends any command with one line, ``mjccd: interrupted``, and exit
+    status 130.  A reader that closes stdout early (``mjccd solve x.json |
+    head -c 10``) ends the command quietly, following Python's recipe for
+    SIGPIPE: stdout is pointed at the null device and the status is 141
+    (128 + SIGPIPE, what a shell reports for a command a closed pipe ends,
+    so ``set -o pipefail`` scripts can tell it from an error).
+    """
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        code = _run(argv)
+        sys.stdout.flush()  # a closed pipe shows here, not at exit
+        return code
+    except BrokenPipeError:
+        _drop_stdout()
+        return EXIT_CLOSED_PIPE
     except KeyboardInterrupt:
         print("mjccd: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # last line of defence: one line, never a traceback
-        print(f"mjccd {args.command}: {type(exc).__name__}: {exc}", file=sys.stderr)
-        return 1
+        return EXIT_INTERRUPTED

@@ -594,8 +594,8 @@ class _TwoPoses:
 
     def translated(self, offset):
         moved = _copy_with(self, position0=self.position0 - offset, position1=self.position1 - offset)
-        if hasattr(self, "_w"):
-            moved._w = w_translated(*self._w, offset)
+        if isinstance(moved, _WMotion):  # formed again from the shifted centres: no cancellation in W
+            moved._w = moved._scaled_inverse()
         return moved
 
     def factor(self):
@@ -632,9 +632,13 @@ class Rigid(_TwoPoses, _WMotion):
         self.position0, self.quaternion0, self.position1, q1 = _end_poses(position0, quaternion0,
                                                                           position1, quaternion1)
         self.quaternion1 = _aligned(self.quaternion0, q1)
+        super().__init__(*self._scaled_inverse())
+
+    def _scaled_inverse(self):
+        """W of the quaternion lerp followed by the centre lerp, formed from this motion's own poses."""
         rot = w_of_rotation(_linear_bernstein(self.quaternion0, self.quaternion1))
         shift = w_of_translation(_linear_bernstein(self.position0, self.position1))
-        super().__init__(*w_compose(*shift, *rot))
+        return w_compose(*shift, *rot)
 
     def quadric(self, radii):
         return quadric_rigid(np.asarray(radii, float), self.position0, self.quaternion0,
@@ -768,6 +772,8 @@ class Rational(_WMotion):
                     acc = P.polyadd(acc, P.polymul(rot[i][k], rot[j][k]))
                 if i == j:
                     acc = P.polysub(acc, rd2)
+                if not (np.isfinite(acc).all() and np.isfinite(scale)):
+                    raise InputError(f"rotation: row {i} . row {j} overflows (coefficients too large)")
                 if np.abs(acc).max() > 1e-9 * scale:
                     raise InputError(f"rotation: not orthogonal (row {i} . row {j} differs from "
                                      f"{'the denominator squared' if i == j else '0'} by "
@@ -793,12 +799,9 @@ class Fixed:
 
 
 def _unit_axis(axis):
-    """The validated joint axis, normalised."""
-    axis = _validate.vector(axis, 3, "axis")
-    n = float(np.linalg.norm(axis))
-    if n < 1e-12:
-        raise InputError("axis: zero vector")
-    return axis / n
+    """The validated joint axis, normalised (scaled first, so that huge entries do not overflow)."""
+    axis = _validate.direction(axis, 3, "axis")
+    return axis / np.sqrt(axis @ axis)
 
 
 class Hinge:
@@ -872,4 +875,22 @@ class Chain(_WMotion):
             W = Wk if W is None else w_compose(*W, *Wk)
         self.elements = elements
         super().__init__(*W)
+
+    def translated(self, offset):
+        """The chain seen from ``offset``, composed again with the offset taken off its root's own position.
+
+        A root :class:`Fixed` or :class:`Free` (a MuJoCo body's offset or free
+        joint) is shifted before the composition multiplies it, so a chain far
+        from the world origin loses nothing to the distance; a chain whose
+        first element is a joint at the world origin gets a leading shift.
+        """
+        offset = np.asarray(offset, float)
+        first = self.elements[0]
+        if type(first) is Fixed:
+            root = [Fixed(first.position - offset, first.quaternion)]
+        elif type(first) is Free:
+            root = [Free(first.position0 - offset, first.quaternion0, first.position1 - offset, first.quaternion1)]
+        else:
+            root = [Fixed(-offset), first]
+        return Chain(root + self.elements[1:])
 

@@ -375,3 +375,28 @@ def test_rows_at_equals_row_by_row_evaluation():
             got = _rows_at(F, t)
             for i in range(5):
                 assert got[i] == pytest.approx(bz.evaluate_row(F, i, t), rel=1e-12, abs=1e-12)
+
+
+def _far_arm(offset, free):
+    """A two-hinge arm rooted at ``offset`` (a Fixed root, or a Free root moving by a dyadic step)."""
+    root = (mjccd.Free(offset, [1, 0, 0, 0], offset + [0.0625, 0.0, 0.0], [1, 0, 0, 0]) if free
+            else mjccd.Fixed(offset))
+    return mjccd.Chain([root, mjccd.Hinge([0, 0, 1], -0.8, 0.9), mjccd.Fixed([0.5, 0, 0]),
+                        mjccd.Hinge([0, 1, 0], -0.2, 0.4), mjccd.Fixed([0.375, 0, 0])])
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_chains_far_from_the_origin_give_the_same_answer(free):
+    """A chain and its partner shifted by up to 2^40 (about 1e12) times their size: every input stays exact
+    (dyadic), so the answer must not move.  Before the chain was composed again from its shifted root, the
+    far copies drifted by 1e-6 at 1e10 and were still reported certified."""
+    a, b = mjccd.Ellipsoid([0.1875, 0.0625, 0.0625]), mjccd.Ellipsoid([0.125, 0.125, 0.125])
+    answers = []
+    for k in (0, 20, 33, 40):
+        offset = 2.0 ** k * np.array([1.0, -0.25, 0.125])
+        partner = mjccd.Rigid(offset + [0.4375, 0.65625, 0.0], [1, 0, 0, 0],
+                              offset + [0.4375, 0.59375, 0.0], [1, 0, 0, 0])
+        contact = mjccd.first_contact(a, _far_arm(offset, free), b, partner)
+        assert contact is not None and contact.certainty == "certified"
+        answers.append(contact.time)
+    assert max(answers) - min(answers) <= 1e-12, answers

@@ -25,6 +25,7 @@ from numba.extending import intrinsic
 from mjccd import _validate
 from mjccd import filters as fl
 from mjccd.ccd import exact_pair, same_orientation
+from mjccd.errors import InputError
 from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
 
 _jit = numba.njit(cache=True, nogil=True)
@@ -579,24 +580,31 @@ class Scene:
     def __init__(self, radii, *, pairs=None, motion="rigid", plane_cache=True):
         self.radii = _validate.radii_array(radii, "radii")
         n = len(self.radii)
-        if motion not in ("rigid", "affine"):
-            raise ValueError(f"motion: expected 'rigid' or 'affine', got {motion!r}")
+        if not isinstance(motion, str) or motion not in ("rigid", "affine"):
+            raise InputError(f"motion: expected 'rigid' or 'affine', got {motion!r}")
         self.motion = motion
         if pairs is None:
             pairs = all_pairs(n)
-        arr = np.asarray(pairs)
+        try:
+            arr = np.asarray(pairs)
+        except ValueError:  # ragged rows
+            raise InputError(f"pairs: expected P rows of 2 ellipsoid indices in 0..{n - 1}") from None
         if arr.ndim != 2 or arr.shape[1] != 2:
-            raise ValueError(f"pairs: expected shape Px2, got {arr.shape}")
+            raise InputError(f"pairs: expected shape Px2, got {arr.shape}")
+        if arr.size and arr.dtype.kind not in "iuf":  # names, objects or bools: only indices are meant
+            raise InputError(f"pairs: expected ellipsoid indices in 0..{n - 1}, got {arr[0].tolist()!r} "
+                             "(pairs of body names: mjccd.mujoco.CCDMonitor)")
         if arr.size and not np.issubdtype(arr.dtype, np.integer):
             if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):
-                raise ValueError("pairs: expected integer ellipsoid indices")
+                raise InputError("pairs: expected integer ellipsoid indices")
         arr = arr.astype(np.int64)
         bad = np.nonzero((arr < 0).any(axis=1) | (arr >= n).any(axis=1))[0]
         if len(bad):
-            raise ValueError(f"pairs[{bad[0]}]: index out of range for {n} ellipsoids, got {arr[bad[0]].tolist()}")
+            raise InputError(f"pairs[{bad[0]}]: index out of range for {n} ellipsoids, got {arr[bad[0]].tolist()}")
         same = np.nonzero(arr[:, 0] == arr[:, 1])[0]
         if len(same):
-            raise ValueError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, got {arr[same[0]].tolist()}")
+            raise InputError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, "
+                             f"got {arr[same[0]].tolist()}")
         self.pairs = np.ascontiguousarray(arr)
         self.plane_cache = bool(plane_cache)
         # (P,) per pair: a relative motion over a frame below this counts as free (zero: every pair checked);
@@ -617,11 +625,18 @@ class Scene:
         self._cache_kind = np.zeros(len(self.pairs), dtype=np.int8)
 
     def _poses(self, poses, field, p, q):
-        """Positions into p and normalised quaternions into q; a bad input raises naming ``field``."""
-        if (isinstance(poses, np.ndarray) and poses.dtype == np.float64 and poses.shape == (len(self.radii), 7)
-                and poses.flags.c_contiguous and _split_poses(poses, p, q) < 0):
+        """Positions into p and normalised quaternions into q; a bad input raises naming ``field``.
+
+        The compiled split takes ordinary poses.  A quaternion is a direction, but one whose squared
+        norm overflows ([1e300, 1e300, 0, 0]) comes out of the split as a zero row (so the unit rows'
+        squares do not sum to N): then, as every other input, the poses go to
+        :func:`mjccd._validate.pose_array`, which scales each quaternion before normalising it.
+        """
+        n = len(self.radii)
+        if (isinstance(poses, np.ndarray) and poses.dtype == np.float64 and poses.shape == (n, 7)
+                and poses.flags.c_contiguous and _split_poses(poses, p, q) < 0 and abs(np.vdot(q, q) - n) < 0.5):
             return p, q
-        checked = _validate.pose_array(poses, field, len(self.radii))  # raises, or converts other input
+        checked = _validate.pose_array(poses, field, n)  # raises, or converts other input
         p[:] = checked[:, :3]
         q[:] = checked[:, 3:]
         return p, q
@@ -661,13 +676,16 @@ class Scene:
         """
         arr = _validate.array(poses, (None, len(self.radii), 7), "poses")
         if arr.shape[0] < 2:
-            raise ValueError(f"poses: expected at least 2 pose sets (F + 1, N, 7), got {arr.shape[0]}")
-        norms = np.sqrt(np.sum(arr[:, :, 3:] ** 2, axis=2))
-        bad = np.argwhere(norms < 1e-12)
+            raise InputError(f"poses: expected at least 2 pose sets (F + 1, N, 7), got {arr.shape[0]}")
+        # quaternions scaled by a power of two (exact) before normalising, as _validate.pose_array does
+        _, exponents = np.frexp(np.abs(arr[:, :, 3:]).max(axis=2))
+        quats = np.ldexp(arr[:, :, 3:], -exponents[:, :, None])
+        norms = np.sqrt(np.sum(quats ** 2, axis=2))
+        bad = np.argwhere(np.ldexp(norms, exponents) < _validate.MIN_NORM)
         if len(bad):
-            raise ValueError(f"poses[{bad[0][0]}][{bad[0][1]}]: zero quaternion")
+            raise InputError(f"poses[{bad[0][0]}][{bad[0][1]}]: zero quaternion")
         positions = np.ascontiguousarray(arr[:, :, :3])
-        quats = np.ascontiguousarray(arr[:, :, 3:] / norms[:, :, None])
+        quats = np.ascontiguousarray(quats / norms[:, :, None])
         nf = arr.shape[0] - 1
         npairs = len(self.pairs)
         out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),

@@ -1,10 +1,13 @@
 """Contact-time assertions for users' own test suites, with messages that show expected vs found."""
 import os
+import zipfile
 
 import mujoco
 import numpy as np
 
+from mjccd import _validate
 from mjccd.ccd import collision_intervals
+from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.monitor import CCDMonitor
@@ -17,12 +20,16 @@ def load_model(model):
         return model
     if isinstance(model, (str, os.PathLike)):
         text = os.fspath(model)
-        if text.lstrip().startswith("<"):
-            return mujoco.MjModel.from_xml_string(text)
-        if not os.path.exists(text):
-            raise ValueError(f"model: no such file {text!r}")
-        return mujoco.MjModel.from_xml_path(text)
-    raise ValueError(f"model: expected an MjModel, an MJCF path or an MJCF string, got {type(model).__name__}")
+        is_xml = text.lstrip().startswith("<")
+        if not is_xml and not os.path.isfile(text):
+            raise InputError(f"model: no such file {text!r}")
+        try:
+            return mujoco.MjModel.from_xml_string(text) if is_xml else mujoco.MjModel.from_xml_path(text)
+        except ValueError as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else "cannot compile"
+            raise InputError(f"model: MuJoCo cannot load {'the MJCF string' if is_xml else repr(text)}: "
+                             f"{first}") from None
+    raise InputTypeError(f"model: expected an MjModel, an MJCF path or an MJCF string, got {type(model).__name__}")
 
 
 def load_trajectory(trajectory, model, times=None):
@@ -30,26 +37,35 @@ def load_trajectory(trajectory, model, times=None):
     if isinstance(trajectory, (str, os.PathLike)):
         path = os.fspath(trajectory)
         if not path.endswith(".npz"):
-            raise ValueError(f"trajectory: expected an .npz file with a 'qpos' array, got {path!r}")
-        with np.load(path) as f:
-            if "qpos" not in f:
-                raise ValueError(f"trajectory: {path} has no 'qpos' array")
-            qpos = f["qpos"]
-            if times is None and "time" in f:
-                times = f["time"]
+            raise InputError(f"trajectory: expected an .npz file with a 'qpos' array, got {path!r}")
+        if not os.path.isfile(path):
+            raise InputError(f"trajectory: no such file {path!r}")
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                arrays = {key: f[key] for key in ("qpos", "time") if key in f}
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise InputError(f"trajectory: {path} is not a readable .npz file ({exc})") from None
+        if "qpos" not in arrays:
+            raise InputError(f"trajectory: {path} has no 'qpos' array")
+        qpos = arrays["qpos"]
+        if times is None:
+            times = arrays.get("time")
     else:
         qpos = trajectory
-    qpos = np.asarray(qpos, dtype=float)
+    try:
+        qpos = np.asarray(qpos, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"trajectory: expected qpos numbers, got {type(qpos).__name__}") from None
     if qpos.ndim != 2 or qpos.shape[1] != model.nq or qpos.shape[0] < 2:
-        raise ValueError(f"trajectory: expected qpos of shape (T >= 2, nq = {model.nq}), got {qpos.shape}")
+        raise InputError(f"trajectory: expected qpos of shape (T >= 2, nq = {model.nq}), got {qpos.shape}")
     bad = np.argwhere(~np.isfinite(qpos))
     if len(bad):
-        raise ValueError(f"trajectory[{bad[0][0]}][{bad[0][1]}]: is NaN or infinite")
+        raise InputError(f"trajectory[{bad[0][0]}][{bad[0][1]}]: is NaN or infinite")
     if times is None:
         times = np.arange(len(qpos)) * model.opt.timestep
-    times = np.asarray(times, dtype=float)
-    if times.shape != (len(qpos),) or not np.all(np.diff(times) > 0):
-        raise ValueError(f"times: expected {len(qpos)} increasing values, got shape {times.shape}")
+    times = _validate.array(times, (len(qpos),), "times")
+    if not np.all(np.diff(times) > 0):
+        raise InputError(f"times: expected {len(qpos)} increasing values")
     return qpos, times
 
 
@@ -61,7 +77,7 @@ def _setup(model, trajectory, ellipsoids, times):
 
         ellipsoids = fit_model(model)
     elif not isinstance(ellipsoids, EllipsoidSet):
-        raise ValueError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
+        raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
     return model, qpos, times, ellipsoids
 
 
@@ -69,6 +85,14 @@ def _states(model, qpos, times):
     mpos = model.body_pos[model.body_mocapid >= 0].copy()
     mquat = model.body_quat[model.body_mocapid >= 0].copy()
     return [State(q, mpos, mquat, float(t)) for q, t in zip(qpos, times)]
+
+
+def _tolerance(tol):
+    """``tol`` as a finite number >= 0 (seconds)."""
+    tol = _validate.scalar(tol, "tol")
+    if tol < 0.0:
+        raise InputError(f"tol: expected a number >= 0 (seconds), got {tol}")
+    return tol
 
 
 def _uncertain(c):
@@ -120,6 +144,7 @@ def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=
         time: expected simulation time of the first contact (``times[0]`` is the start).
         times: (T,) times of the rows; default ``k * model.opt.timestep``.
     """
+    time, tol = _validate.scalar(time, "time"), _tolerance(tol)
     found = trajectory_contacts(model, trajectory, pairs=[pair], ellipsoids=ellipsoids, motion=motion, times=times)
     head = f"first contact of {pair[0]!r} and {pair[1]!r}: expected t = {time:.9g} s (tol {tol:g})"
     if not found:
@@ -140,8 +165,13 @@ def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion=
     """Assert that no pair (default: :func:`~mjccd.mujoco.default_pairs`) touches along the trajectory.
 
     An uncertain answer (the exact solver hit a limit and could not certify the pair free) fails
-    too: a contact is possible within its bracket, and the message names it.
+    too: a contact is possible within its bracket, and the message names it.  ``show``: how many
+    steps the message lists.
     """
+    if isinstance(show, (bool, np.bool_)) or not isinstance(show, (int, np.integer)):
+        raise InputTypeError(f"show: expected an integer >= 0, got {show!r}")
+    if show < 0:
+        raise InputError(f"show: expected an integer >= 0, got {show!r}")
     found = trajectory_contacts(model, trajectory, pairs=pairs, ellipsoids=ellipsoids, motion=motion, times=times)
     if found:
         lines = "\n".join("  " + _describe(c) for c in found[:show])
@@ -186,6 +216,7 @@ def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid
 
 def assert_intervals(model, trajectory, pair, intervals, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
     """Assert the contact intervals (seconds) of a body pair along the trajectory, endpoint by endpoint."""
+    tol = _tolerance(tol)
     found = contact_intervals(model, trajectory, pair, ellipsoids=ellipsoids, motion=motion, times=times)
     expected = [(float(a), float(b)) for a, b in intervals]
 

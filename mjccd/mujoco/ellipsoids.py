@@ -1,11 +1,13 @@
 """Bounding ellipsoids attached to MuJoCo bodies: the set, its files, and its binding to a model."""
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mjccd import _validate
+from mjccd.errors import InputError, InputTypeError
 
 FORMAT_VERSION = 1
 
@@ -34,7 +36,7 @@ class EllipsoidSet:
         bodies = tuple(str(b) for b in self.bodies)
         n = len(bodies)
         if n == 0:
-            raise ValueError("bodies: an ellipsoid set needs at least one ellipsoid")
+            raise InputError("bodies: an ellipsoid set needs at least one ellipsoid")
         object.__setattr__(self, "bodies", bodies)
         object.__setattr__(self, "radii", _validate.radii_array(self.radii, "radii"))
         object.__setattr__(self, "positions", _validate.array(self.positions, (n, 3), "positions"))
@@ -42,22 +44,22 @@ class EllipsoidSet:
             self.quaternions, (n, 4), "quaternions")]), "quaternions")[:, 3:]
         object.__setattr__(self, "quaternions", np.ascontiguousarray(quats))
         if len(self.radii) != n:
-            raise ValueError(f"radii: expected {n} rows (one per body entry), got {len(self.radii)}")
+            raise InputError(f"radii: expected {n} rows (one per body entry), got {len(self.radii)}")
         geoms = tuple(str(g) for g in self.geoms) if len(self.geoms) else ("",) * n
         if len(geoms) != n:
-            raise ValueError(f"geoms: expected {n} entries, got {len(geoms)}")
+            raise InputError(f"geoms: expected {n} entries, got {len(geoms)}")
         object.__setattr__(self, "geoms", geoms)
         ratios = (np.full(n, np.nan) if self.volume_ratios is None
                   else np.asarray(self.volume_ratios, dtype=float).reshape(-1))
         if ratios.shape != (n,):
-            raise ValueError(f"volume_ratios: expected {n} entries, got {ratios.shape[0]}")
+            raise InputError(f"volume_ratios: expected {n} entries, got {ratios.shape[0]}")
         object.__setattr__(self, "volume_ratios", ratios)
 
     def __len__(self):
         return len(self.bodies)
 
     def body_ids(self, model):
-        """(N,) MuJoCo body ids of the ellipsoids; ValueError naming any body the model lacks."""
+        """(N,) MuJoCo body ids of the ellipsoids; InputError naming any body the model lacks (and its bodies)."""
         import mujoco
 
         ids = np.empty(len(self), dtype=np.int64)
@@ -67,7 +69,9 @@ class EllipsoidSet:
             else:
                 ids[k] = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
             if ids[k] < 0:
-                raise ValueError(f"ellipsoids.bodies[{k}]: the model has no body {name!r}")
+                labels = [body_label(model, b) for b in range(1, model.nbody)]
+                shown = ", ".join(repr(b) for b in labels[:20]) + (", ..." if len(labels) > 20 else "")
+                raise InputError(f"ellipsoids.bodies[{k}]: the model has no body {name!r}; its bodies: {shown}")
         return ids
 
     # ------------------------------------------------------------ files
@@ -85,14 +89,14 @@ class EllipsoidSet:
     def from_dict(cls, doc):
         """Inverse of :meth:`to_dict`; errors name the entry and field."""
         if not isinstance(doc, dict) or not isinstance(doc.get("ellipsoids"), list):
-            raise ValueError("ellipsoids: expected an object with an 'ellipsoids' list")
+            raise InputError("ellipsoids: expected an object with an 'ellipsoids' list")
         if doc.get("version", FORMAT_VERSION) != FORMAT_VERSION:
-            raise ValueError(f"version: unsupported ellipsoid file version {doc.get('version')!r}")
+            raise InputError(f"version: unsupported ellipsoid file version {doc.get('version')!r}")
         rows = doc["ellipsoids"]
         for k, row in enumerate(rows):
             for key in ("body", "radii", "position", "quaternion"):
                 if not isinstance(row, dict) or key not in row:
-                    raise ValueError(f"ellipsoids[{k}].{key}: missing")
+                    raise InputError(f"ellipsoids[{k}].{key}: missing")
         return cls(bodies=[r["body"] for r in rows],
                    radii=[_validate.radii(r["radii"], f"ellipsoids[{k}].radii") for k, r in enumerate(rows)],
                    positions=[r["position"] for r in rows],
@@ -102,7 +106,7 @@ class EllipsoidSet:
 
     def save(self, path):
         """Write to ``.json`` or ``.npz`` (chosen by the extension)."""
-        path = os.fspath(path)
+        path = _file_name(path)
         if path.endswith(".npz"):
             np.savez(path, version=FORMAT_VERSION, bodies=np.array(self.bodies), geoms=np.array(self.geoms),
                      radii=self.radii, positions=self.positions, quaternions=self.quaternions,
@@ -112,29 +116,55 @@ class EllipsoidSet:
                 json.dump(self.to_dict(), fh, indent=1)
                 fh.write("\n")
         else:
-            raise ValueError(f"path: expected a .json or .npz file name, got {path!r}")
+            raise InputError(f"path: expected a .json or .npz file name, got {path!r}")
 
     @classmethod
     def load(cls, path):
-        """Read a file written by :meth:`save`."""
-        path = os.fspath(path)
+        """Read a file written by :meth:`save`; every error is an InputError naming the file."""
+        path = _file_name(path)
+        if not path.endswith((".npz", ".json")):
+            raise InputError(f"path: expected a .json or .npz file name, got {path!r}")
+        try:
+            return cls._read(path)
+        except FileNotFoundError:
+            raise InputError(f"{path}: no such ellipsoid file") from None
+        except IsADirectoryError:
+            raise InputError(f"{path}: is a folder, expected an ellipsoid file") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read the ellipsoid file: {exc.strerror or exc}") from None
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{path}: not valid JSON: {exc}") from None
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: not a text file; expected JSON") from None
+        except ValueError as exc:  # the content (InputError from the checks)
+            raise InputError(f"{path}: {exc}") from None
+
+    @classmethod
+    def _read(cls, path):
+        """The set in the ``.json`` or ``.npz`` file ``path`` (the errors of :meth:`load` unwrapped)."""
         if path.endswith(".npz"):
-            with np.load(path, allow_pickle=False) as f:
+            try:
+                archive = np.load(path, allow_pickle=False)
+            except (ValueError, zipfile.BadZipFile, EOFError) as exc:
+                raise InputError(f"not a readable .npz file ({exc})") from None
+            with archive as f:
                 missing = [k for k in ("bodies", "radii", "positions", "quaternions") if k not in f]
                 if missing:
-                    raise ValueError(f"{path}: missing array {missing[0]!r}")
+                    raise InputError(f"missing array {missing[0]!r}")
                 return cls(bodies=f["bodies"].tolist(), radii=f["radii"], positions=f["positions"],
                            quaternions=f["quaternions"],
                            geoms=f["geoms"].tolist() if "geoms" in f else (),
                            volume_ratios=f["volume_ratios"] if "volume_ratios" in f else None)
-        if path.endswith(".json"):
-            with open(path) as fh:
-                try:
-                    doc = json.load(fh)
-                except json.JSONDecodeError as exc:
-                    raise ValueError(f"{path}: not valid JSON: {exc}") from None
-            return cls.from_dict(doc)
-        raise ValueError(f"path: expected a .json or .npz file name, got {path!r}")
+        with open(path, encoding="utf-8") as fh:
+            return cls.from_dict(json.load(fh))
+
+
+def _file_name(path):
+    """``path`` as a string (str or os.PathLike; anything else is refused)."""
+    try:
+        return os.fspath(path)
+    except TypeError:
+        raise InputTypeError(f"path: expected a file name, got {type(path).__name__}") from None
 
 
 def body_label(model, body_id):

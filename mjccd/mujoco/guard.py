@@ -6,18 +6,14 @@ import mujoco
 import numba
 import numpy as np
 
+from mjccd.errors import InputError, InputTypeError
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.monitor import CCDMonitor, StepCheck  # noqa: F401  (StepCheck re-exported)
+from mjccd.mujoco.monitor import (BAD_COUNTS, BAD_STATE_WARNINGS, CCDMonitor, StepCheck,  # noqa: F401 (re-exported)
+                                  step_count, went_bad)
 from mjccd.mujoco.motions import body_path, capture
 from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
-# MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
-# autoreset is disabled) resets the data inside the step
-BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
-                      mujoco.mjtWarning.mjWARN_BADQACC)
-BAD_QPOS, BAD_QVEL, BAD_QACC = (int(w) for w in BAD_STATE_WARNINGS)
-BAD_COUNTS = slice(BAD_QPOS, BAD_QACC + 1)  # the three are adjacent in mjtWarning: one slice of the counts
 UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
 
 
@@ -51,12 +47,14 @@ def geom_ellipsoids(model, group=5):
     Each geom becomes one ellipsoid fixed in its body at the geom's local pose.
     """
     if not isinstance(model, mujoco.MjModel):
-        raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
-    if not isinstance(group, (int, np.integer)) or not 0 <= int(group) < 6:
-        raise ValueError(f"group: expected an integer geom group in 0..5, got {group!r}")
+        raise InputTypeError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if isinstance(group, (bool, np.bool_)) or not isinstance(group, (int, np.integer)):
+        raise InputTypeError(f"group: expected an integer geom group in 0..5, got {group!r}")
+    if not 0 <= int(group) < 6:
+        raise InputError(f"group: expected an integer geom group in 0..5, got {group!r}")
     ids = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID) & (model.geom_group == int(group)))
     if len(ids) == 0:
-        raise ValueError(f"group: the model has no ellipsoid geom in group {int(group)}")
+        raise InputError(f"group: the model has no ellipsoid geom in group {int(group)}")
     names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"#{int(g)}" for g in ids]
     return EllipsoidSet(bodies=[body_label(model, b) for b in model.geom_bodyid[ids]],
                         radii=model.geom_size[ids].copy(), positions=model.geom_pos[ids].copy(),
@@ -64,11 +62,14 @@ def geom_ellipsoids(model, group=5):
 
 
 def _positive(value, field, *, integer=False, allow_zero=False):
-    ok = isinstance(value, (int, np.integer)) if integer else isinstance(value, (int, float, np.integer, np.floating))
-    if not ok or isinstance(value, bool) or not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        kind = "integer" if integer else "number"
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{field}: expected a finite {kind} {bound}, got {value!r}")
+    """A finite number (an int with ``integer``) > 0, or >= 0 with ``allow_zero``; bool and str refused."""
+    kinds = (int, np.integer) if integer else (int, float, np.integer, np.floating)
+    kind = "integer" if integer else "number"
+    bound = ">= 0" if allow_zero else "> 0"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, kinds):
+        raise InputTypeError(f"{field}: expected a finite {kind} {bound}, got {value!r}")
+    if not np.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise InputError(f"{field}: expected a finite {kind} {bound}, got {value!r}")
     return int(value) if integer else float(value)
 
 
@@ -158,16 +159,16 @@ class GuardedStepper:
         self.max_rechecks = _positive(max_rechecks, "max_rechecks", integer=True, allow_zero=True)
         self.overshoot = _positive(overshoot, "overshoot")
         if self.overshoot >= 1.0:
-            raise ValueError(f"overshoot: expected a fraction of the timestep below 1, got {overshoot!r}")
+            raise InputError(f"overshoot: expected a fraction of the timestep below 1, got {overshoot!r}")
         self.contact_step = _positive(contact_step, "contact_step")
         if self.contact_step > 1.0:
-            raise ValueError(f"contact_step: expected a fraction of the timestep up to 1, got {contact_step!r}")
+            raise InputError(f"contact_step: expected a fraction of the timestep up to 1, got {contact_step!r}")
         self.max_penetration = _positive(max_penetration, "max_penetration", allow_zero=True)
         if self.max_penetration >= 1.0:
-            raise ValueError(f"max_penetration: expected a fraction of the pair's thickness below 1, "
+            raise InputError(f"max_penetration: expected a fraction of the pair's thickness below 1, "
                              f"got {max_penetration!r}")
         if on_clamp is not None and not callable(on_clamp):
-            raise ValueError("on_clamp: expected a callable or None")
+            raise InputTypeError(f"on_clamp: expected a callable or None, got {type(on_clamp).__name__}")
         self.model, self.data, self.on_clamp = model, data, on_clamp
         self.ellipsoids, self.motion = ellipsoids, motion
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
@@ -196,10 +197,10 @@ class GuardedStepper:
         return self.monitor.pairs
 
     def step(self, nstep=1):
-        """Advance ``nstep`` timesteps, each guarded; the :class:`GuardReport` of the last one."""
+        """Advance ``nstep`` timesteps (an int >= 1), each guarded; the :class:`GuardReport` of the last one."""
         if type(nstep) is int and nstep == 1:
             return self.guarded_step(None)
-        for _ in range(_positive(nstep, "nstep", integer=True)):
+        for _ in range(step_count(nstep, "nstep")):
             self.guarded_step(None)
         return self.last_report
 
@@ -237,7 +238,9 @@ class GuardedStepper:
             mujoco.mj_step(m, d)
         else:
             full_step()
-        if counts.tobytes() != bad or d.time <= state0[0]:  # _went_bad, inline on the hot path
+        # _went_bad's warning and time tests, inline on the hot path (MuJoCo's step leaves no non-finite
+        # state without a bad-state warning)
+        if counts.tobytes() != bad or d.time <= state0[0]:
             return self._unstable_trial(self._opt.timestep)
         if fast is not None:
             if not fast.end_may_touch(d):
@@ -260,13 +263,12 @@ class GuardedStepper:
         return self._bad_counts
 
     def _went_bad(self, bad):
-        """True when the MuJoCo step just taken (from the saved state) met a bad state.
+        """True when the MuJoCo step just taken (from the saved state) met a bad state (see
+        :func:`~mjccd.mujoco.monitor.went_bad`).
 
-        ``bad``: the bytes of the bad-state warning counts before it.  A reset clears the counts and
-        then counts its own warning, so a repeated reset can leave them as they were; it also sets the
-        time back to 0, so the step then ends no later than it began.
+        ``bad``: the bytes of the bad-state warning counts before it.
         """
-        return self._bad_counts.tobytes() != bad or self.data.time <= self._state0[0]
+        return went_bad(self.data, self._bad_counts, bad, self._state0[0])
 
     def _unstable_trial(self, dt):
         """The report of a step whose trial MuJoCo found unstable (and reset): kept as it is, unchecked."""
@@ -400,9 +402,10 @@ class GuardedWrapper(DelegatingEnvironment):
         pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp: as in
             :class:`GuardedStepper`.
 
-    ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step.  As with
-    dm-control's own stepping, a MuJoCo warning raised in any piece of a guarded step raises
-    ``PhysicsError`` (unless the physics suppresses errors).
+    ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step and
+    ``last_unstable`` whether MuJoCo met a bad state in one of them (as in
+    :class:`~mjccd.dm_control.CCDWrapper`).  As with dm-control's own stepping, a MuJoCo warning raised
+    in any piece of a guarded step raises ``PhysicsError`` (unless the physics suppresses errors).
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=32, overshoot=1e-3,
@@ -416,16 +419,18 @@ class GuardedWrapper(DelegatingEnvironment):
                                       contact_step=contact_step, max_penetration=max_penetration,
                                       on_clamp=on_clamp)
         self.last_reports = []
+        self.last_unstable = False
 
     def reset(self):
         self.last_reports = []
+        self.last_unstable = False
         return self._env.reset()
 
     def step(self, action):
         physics = self._env.physics
         stepper = self.stepper
         if physics.model.ptr is not stepper.model:
-            raise ValueError("env: the physics model was reloaded; wrap the environment again")
+            raise InputError("env: the physics model was reloaded; wrap the environment again")
         stepper.data = stepper.monitor.data = physics.data.ptr
         original = physics.step
         reports = []
@@ -434,7 +439,7 @@ class GuardedWrapper(DelegatingEnvironment):
             mujoco.mj_step1(stepper.model, stepper.data)
 
         def guarded(nstep=1):
-            for _ in range(int(nstep)):
+            for _ in range(step_count(nstep, "nstep")):
                 # as dm-control's own step: a MuJoCo warning raised in any piece of a step is a PhysicsError
                 # (one context per step: the trial's own check shares the physics' warning snapshot)
                 with physics.check_invalid_state():
@@ -446,5 +451,6 @@ class GuardedWrapper(DelegatingEnvironment):
         finally:
             del physics.step
         self.last_reports = reports
+        self.last_unstable = any(r.unstable for r in reports)
         return timestep
 

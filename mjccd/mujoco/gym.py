@@ -1,7 +1,8 @@
 """Gymnasium wrapper (extra ``mjccd[gymnasium]``): the first contact of each step in ``info``."""
 import gymnasium
 
-from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.errors import InputTypeError
+from mjccd.mujoco.monitor import CCDMonitor, step_count
 from mjccd.mujoco.wrappers import SubstepRecorder, fitted_or_checked, _model_and_data
 
 
@@ -10,10 +11,14 @@ class CCDGymWrapper(gymnasium.Wrapper):
 
     ``info["ccd"]`` holds ``contact_time`` (seconds from the start of the step
     to the first contact, +inf when none), ``contact_pair`` (body ids, -1 when
-    none), ``contact_point``, ``contact_normal`` and ``contacts`` (the
-    :class:`~mjccd.mujoco.StepContact` list).  Every one of the ``frame_skip``
-    MuJoCo steps is checked by wrapping the environment's ``do_simulation``.
-    Arguments as in :class:`mjccd.dm_control.CCDWrapper`.
+    none), ``contact_point``, ``contact_normal``, ``contacts`` (the
+    :class:`~mjccd.mujoco.StepContact` list), ``reports`` (the
+    :class:`~mjccd.mujoco.StepReport` of each MuJoCo step) and ``unstable``
+    (True when MuJoCo met a bad state in one of them: that step is not
+    checked; see :attr:`~mjccd.mujoco.StepReport.unstable`).  Every one of the
+    ``frame_skip`` MuJoCo steps is checked by wrapping the environment's
+    ``do_simulation``.  ``last_contacts``, ``last_reports`` and ``last_unstable``
+    keep the same of the last step.  Arguments as in :class:`mjccd.dm_control.CCDWrapper`.
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
@@ -21,13 +26,15 @@ class CCDGymWrapper(gymnasium.Wrapper):
         super().__init__(env)
         base, model, data = _model_and_data(env)
         if not callable(getattr(base, "do_simulation", None)):
-            raise ValueError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
+            raise InputTypeError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
         self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
         self.monitor = CCDMonitor(model, data, self.ellipsoids, pairs=pairs, motion=motion,
                                   on_contact=on_contact, all_pairs=all_pairs,
                                   report_overlapping=report_overlapping)
         self._recorder = SubstepRecorder(self.monitor)
         self.last_contacts = []
+        self.last_reports = []
+        self.last_unstable = False
 
     def step(self, action):
         base, model, data = _model_and_data(self.env)
@@ -36,8 +43,8 @@ class CCDGymWrapper(gymnasium.Wrapper):
         original = base.do_simulation
 
         def checked(ctrl, n_frames):
-            for _ in range(int(n_frames)):
-                recorder.substep(lambda: original(ctrl, 1), data)
+            for _ in range(step_count(n_frames, "n_frames")):
+                recorder.substep(lambda: original(ctrl, 1))
 
         base.do_simulation = checked
         try:
@@ -45,8 +52,12 @@ class CCDGymWrapper(gymnasium.Wrapper):
         finally:
             del base.do_simulation
         self.last_contacts = sorted(recorder.contacts, key=lambda c: c.time)
+        self.last_reports = list(recorder.reports)
+        self.last_unstable = recorder.unstable
         ccd = {key.split("/", 1)[1]: value for key, value in recorder.observation(model).items()}
         ccd["contacts"] = list(self.last_contacts)
+        ccd["reports"] = list(self.last_reports)
+        ccd["unstable"] = self.last_unstable
         info = dict(info)
         info["ccd"] = ccd
         return obs, reward, terminated, truncated, info

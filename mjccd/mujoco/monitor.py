@@ -5,6 +5,7 @@ import mujoco
 import numpy as np
 
 from mjccd.ccd import first_contact
+from mjccd.errors import InputError, InputTypeError
 from mjccd.motion import Static
 from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import UNCERTAIN, Scene, step_kernel
@@ -15,6 +16,48 @@ from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, as_state, capture,
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
                    | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+# MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
+# autoreset is disabled) resets the data inside the step
+BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
+                      mujoco.mjtWarning.mjWARN_BADQACC)
+BAD_COUNTS = slice(int(BAD_STATE_WARNINGS[0]), int(BAD_STATE_WARNINGS[-1]) + 1)  # adjacent in mjtWarning
+
+
+def step_count(value, field):
+    """A number of steps: an int >= 1 (numpy integers too; bool, float and str refused), named ``field``.
+
+    The one check of ``nstep`` and its kin in the monitor, the guard and the wrappers, so that all
+    refuse the same values with the same message.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputTypeError(f"{field}: expected an integer >= 1, got {value!r}")
+    if value < 1:
+        raise InputError(f"{field}: expected an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def flag(value, field):
+    """A yes/no argument: True or False (numpy bools too); anything else refused, named ``field``.
+
+    ``bool("no")`` is True, so a string or a number is refused rather than read as a flag.
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputTypeError(f"{field}: expected True or False, got {value!r}")
+    return bool(value)
+
+
+def went_bad(data, counts, counts_before, time_before):
+    """True when the MuJoCo step just taken on ``data`` met a bad state (see :attr:`StepReport.unstable`).
+
+    ``counts``: the view ``data.warning.number[BAD_COUNTS]``; ``counts_before``: its bytes and
+    ``time_before`` the time, both read just before the step.  A bad position, velocity or
+    acceleration raises one of MuJoCo's bad-state warnings; a reset clears the counts and then counts
+    its own warning, so a repeated reset can leave them as they were, but it also sets the time back
+    to 0, so the step then ends no later than it began.  A state left non-finite (autoreset disabled)
+    counts too.
+    """
+    return (counts.tobytes() != counts_before or data.time <= time_before
+            or not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()))
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,6 +98,10 @@ class StepReport:
 
     ``pairs_uncertain`` counts the pairs on which the exact solver hit a limit (see
     :attr:`StepContact.certainty`), including those whose bracket starts after the first contact.
+    ``unstable`` is True when MuJoCo met a bad position, velocity or acceleration within the step
+    (its ``mjWARN_BADQPOS``/``QVEL``/``QACC`` warnings, a state left NaN or infinite) and, unless
+    autoreset is disabled, reset the data: the jump back to the reset pose is no motion, so nothing
+    is checked across it (no contact, no pair counted), as :class:`~mjccd.mujoco.GuardReport` reports it.
     """
 
     first: object
@@ -62,6 +109,10 @@ class StepReport:
     pairs_checked: int
     pairs_solved: int
     pairs_uncertain: int = 0
+    unstable: bool = False
+
+
+UNSTABLE_REPORT = StepReport(None, (), 0, 0, 0, True)  # what a step that met a bad state reports
 
 
 def _pair_key(a, b):
@@ -136,38 +187,71 @@ def default_pairs(model, ellipsoids, *, drop_overlapping_at_qpos0=True):
     return pairs
 
 
+def _names(labels):
+    """``'a', 'b', ...`` for an error message (the first 20)."""
+    shown = ", ".join(repr(n) for n in labels[:20])
+    return shown + (f", ... ({len(labels)} in all)" if len(labels) > 20 else "")
+
+
 def pairs_from_bodies(model, ellipsoids, body_pairs, field="pairs"):
-    """(P, 2) ellipsoid pairs from a list of (body, body) given by name or id."""
+    """(P, 2) ellipsoid pairs from a list of (body, body) given by name or id.
+
+    A name or id the model lacks, or a body without an ellipsoid, raises :class:`~mjccd.errors.InputError`
+    listing the bodies that carry ellipsoids (and naming the body of a geom given by mistake).
+    """
     ids = ellipsoids.body_ids(model)
+    with_ellipsoids = [body_label(model, b) for b in dict.fromkeys(ids.tolist())]
+    hint = f"; bodies with ellipsoids: {_names(with_ellipsoids)}"
     rows = []
+    if isinstance(body_pairs, (str, bytes)):
+        raise InputTypeError(f"{field}: expected a list of (body, body) pairs, got {body_pairs!r}")
     try:
         items = list(body_pairs)
     except TypeError:
-        raise ValueError(f"{field}: expected a list of (body, body) pairs, got {type(body_pairs).__name__}") from None
+        raise InputTypeError(f"{field}: expected a list of (body, body) pairs, "
+                             f"got {type(body_pairs).__name__}") from None
     for k, pair in enumerate(items):
         if isinstance(pair, str) or not hasattr(pair, "__len__") or len(pair) != 2:
-            raise ValueError(f"{field}[{k}]: expected a (body, body) pair, got {pair!r}")
+            raise InputError(f"{field}[{k}]: expected a (body, body) pair, got {pair!r}")
         resolved = []
         for side, body in zip((0, 1), pair):
-            if isinstance(body, (int, np.integer)):
+            where = f"{field}[{k}][{side}]"
+            if isinstance(body, (int, np.integer)) and not isinstance(body, (bool, np.bool_)):
                 bid = int(body)
                 if not 0 <= bid < model.nbody:
-                    raise ValueError(f"{field}[{k}][{side}]: body id {bid} out of range [0, {model.nbody})")
-            else:
-                bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(body))
+                    raise InputError(f"{where}: body id {bid} out of range [0, {model.nbody}){hint}")
+            elif isinstance(body, str):
+                bid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
                 if bid < 0:
-                    raise ValueError(f"{field}[{k}][{side}]: the model has no body named {body!r}")
+                    geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, body)
+                    also = "" if geom < 0 else \
+                        f" ({body!r} is a geom of body {body_label(model, model.geom_bodyid[geom])!r})"
+                    raise InputError(f"{where}: the model has no body named {body!r}{also}{hint}")
+            else:
+                raise InputError(f"{where}: expected a body name or id, got {body!r}")
             if not np.any(ids == bid):
-                raise ValueError(f"{field}[{k}][{side}]: body {body_label(model, bid)!r} has no ellipsoid")
+                raise InputError(f"{where}: body {body_label(model, bid)!r} has no ellipsoid{hint}")
             resolved.append(bid)
         if resolved[0] == resolved[1]:
-            raise ValueError(f"{field}[{k}]: a body cannot be paired with itself ({pair[0]!r})")
+            raise InputError(f"{field}[{k}]: a body cannot be paired with itself ({pair[0]!r})")
         for i in np.flatnonzero(ids == resolved[0]):
             for j in np.flatnonzero(ids == resolved[1]):
                 rows.append((int(i), int(j)))
     if not rows:
-        raise ValueError(f"{field}: empty pair list")
+        raise InputError(f"{field}: empty pair list")
     return np.array(rows, dtype=np.int64)
+
+
+def check_simulation(model, data):
+    """Refuse a ``model`` that is no ``MjModel`` or a ``data`` that is no ``MjData`` of that model's sizes."""
+    if not isinstance(model, mujoco.MjModel):
+        raise InputTypeError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if not isinstance(data, mujoco.MjData):
+        raise InputTypeError(f"data: expected a mujoco.MjData, got {type(data).__name__}")
+    sizes = (len(data.qpos), len(data.qvel), len(data.xpos), len(data.mocap_pos))
+    if sizes != (model.nq, model.nv, model.nbody, model.nmocap):
+        raise InputError(f"data: made for another model (nq, nv, nbody, nmocap = {sizes}, the model's "
+                         f"{(model.nq, model.nv, model.nbody, model.nmocap)})")
 
 
 class CCDMonitor:
@@ -187,19 +271,17 @@ class CCDMonitor:
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
                  all_pairs=False, report_overlapping=True):
-        if not isinstance(model, mujoco.MjModel):
-            raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
-        if not isinstance(data, mujoco.MjData):
-            raise ValueError(f"data: expected a mujoco.MjData, got {type(data).__name__}")
+        check_simulation(model, data)
         if not isinstance(ellipsoids, EllipsoidSet):
-            raise ValueError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
-        if motion not in MOTIONS:
-            raise ValueError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+            raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
+        if not isinstance(motion, str) or motion not in MOTIONS:
+            raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
         if on_contact is not None and not callable(on_contact):
-            raise ValueError("on_contact: expected a callable or None")
+            raise InputTypeError(f"on_contact: expected a callable or None, got {type(on_contact).__name__}")
+        all_pairs, report_overlapping = flag(all_pairs, "all_pairs"), flag(report_overlapping, "report_overlapping")
         self.model, self.data, self.ellipsoids = model, data, ellipsoids
-        self.motion, self.on_contact, self.all_pairs = motion, on_contact, bool(all_pairs)
-        self.report_overlapping = bool(report_overlapping)
+        self.motion, self.on_contact, self.all_pairs = motion, on_contact, all_pairs
+        self.report_overlapping = report_overlapping
         self.body_ids = ellipsoids.body_ids(model)
         self.pairs = default_pairs(model, ellipsoids) if pairs is None else pairs_from_bodies(
             model, ellipsoids, pairs)
@@ -213,13 +295,17 @@ class CCDMonitor:
     # ------------------------------------------------------------ stepping
 
     def step(self, nstep=1):
-        """Run ``mj_step`` ``nstep`` times, checking each step; the earliest :class:`StepContact` or None."""
+        """Run ``mj_step`` ``nstep`` times (an int >= 1), checking each step; the earliest :class:`StepContact` or None.
+
+        A step in which MuJoCo meets a bad state is not checked (see :attr:`StepReport.unstable`);
+        ``last_report`` says so.
+        """
+        n = step_count(nstep, "nstep")
         first = None
         reports = []
-        for _ in range(int(nstep)):
-            s0 = capture(self.data)
-            mujoco.mj_step(self.model, self.data)
-            report = self._check(s0, capture(self.data))
+        for k in range(n):
+            report = self.advance_checked(lambda: mujoco.mj_step(self.model, self.data),
+                                          f"step {k + 1} of {n}" if n > 1 else "the step")
             reports.append(report)
             if first is None and report.first is not None:
                 first = report.first
@@ -227,8 +313,27 @@ class CCDMonitor:
             self.last_report = StepReport(first, tuple(c for r in reports for c in r.contacts),
                                           sum(r.pairs_checked for r in reports),
                                           sum(r.pairs_solved for r in reports),
-                                          sum(r.pairs_uncertain for r in reports))
+                                          sum(r.pairs_uncertain for r in reports),
+                                          any(r.unstable for r in reports))
         return first
+
+    def advance_checked(self, advance, step_name="the step"):
+        """Take one simulator step with ``advance()`` and check it: its :class:`StepReport` (also ``last_report``).
+
+        The monitor's own steps and the wrappers' substeps all go through here.  A step in which
+        MuJoCo met a bad state (:func:`went_bad`) is reported unstable and not checked: the jump to the
+        reset pose is no motion.  ``step_name`` names the step in errors ("step 2 of 5").
+        """
+        d = self.data
+        counts = d.warning.number[BAD_COUNTS]
+        counts_before, time_before = counts.tobytes(), d.time
+        s0 = capture(d)
+        advance()
+        if went_bad(d, counts, counts_before, time_before):
+            self._cached = None
+            self.last_report = UNSTABLE_REPORT
+            return UNSTABLE_REPORT
+        return self._check(s0, capture(d), (f"data before {step_name}", f"data after {step_name}"))
 
     def check(self, state_t0, state_t1):
         """First contact while moving from state_t0 to state_t1 (``MjData``, :class:`State` or qpos).
@@ -238,7 +343,7 @@ class CCDMonitor:
         """
         s0 = as_state(self.model, state_t0, "state_t0", mocap_from=self.data)
         s1 = as_state(self.model, state_t1, "state_t1", mocap_from=self.data)
-        return self._check(s0, s1).first
+        return self._check(s0, s1, ("state_t0", "state_t1")).first
 
     # ------------------------------------------------------------ internals
 
@@ -251,13 +356,29 @@ class CCDMonitor:
         return self._kin.ellipsoid_poses(state, self.body_ids, self.ellipsoids.positions,
                                          self.ellipsoids.quaternions)
 
-    def _check(self, s0, s1):
+    def _pose_error(self, state, poses, name):
+        """The :class:`~mjccd.errors.InputError` for ellipsoid poses that are not all finite, in the user's terms.
+
+        ``name`` is the state as the caller knows it ("state_t1", "data after step 2 of 5").  MuJoCo
+        checks neither mocap poses nor, without contacts, what they do, so a NaN there reaches the check.
+        """
+        for field in ("qpos", "mocap_pos", "mocap_quat"):
+            values = np.ravel(getattr(state, field))
+            bad = np.flatnonzero(~np.isfinite(values))
+            if len(bad):
+                return InputError(f"{name}: {field}[{bad[0]}] is NaN or infinite")
+        k = int(np.flatnonzero(~np.isfinite(poses).all(axis=1))[0])
+        return InputError(f"{name}: the pose of ellipsoid {k} (body {self.labels[self.body_ids[k]]!r}) is not "
+                          f"finite (largest |qpos| {np.abs(state.qpos).max():.3g})")
+
+    def _check(self, s0, s1, names):
+        """The :class:`StepReport` of the motion from state s0 to s1 (``names``: theirs, for errors)."""
         if len(self.pairs) == 0:
             report = StepReport(None, (), 0, 0)
         elif self._scene is not None:
-            report = self._check_scene(s0, s1)
+            report = self._check_scene(s0, s1, names)
         else:
-            report = self._check_chain(s0, s1)
+            report = self._check_chain(s0, s1, names)
         self.last_report = report
         if self.on_contact is not None:
             for c in (report.contacts if self.all_pairs else ((report.first,) if report.first else ())):
@@ -294,13 +415,19 @@ class CCDMonitor:
                            None if normal is None else np.array(normal, float), status,
                            "certified" if bracket is None else "uncertain", seconds)
 
-    def _check_scene(self, s0, s1):
+    def _check_scene(self, s0, s1, names):
         """Rigid and affine motions: the batched :class:`mjccd.scene.Scene` pipeline."""
         p0 = self._poses(s0)
         p1 = self._kin.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions, self.ellipsoids.quaternions)
+        try:
+            frame = self._scene.step(p0, p1, all_pairs=self.all_pairs,
+                                     new_contacts_only=not self.report_overlapping)
+        except InputError:  # the scene names its own arguments: name the state instead
+            for state, poses, name in zip((s0, s1), (p0, p1), names):
+                if not np.isfinite(poses).all():
+                    raise self._pose_error(state, poses, name) from None
+            raise
         self._cached = (s1, p1)
-        frame = self._scene.step(p0, p1, all_pairs=self.all_pairs,
-                                 new_contacts_only=not self.report_overlapping)
 
         def convert(pc):
             i, j = self.pairs[pc.pair]
@@ -311,11 +438,14 @@ class CCDMonitor:
         return StepReport(first, contacts, frame.counters.pairs, frame.counters.solved_exactly,
                           frame.counters.uncertain)
 
-    def _check_chain(self, s0, s1):
+    def _check_chain(self, s0, s1, names):
         """Chain motions: swept-ball prefilter, then the exact solver pair by pair."""
+        p0 = self._poses(s0)
+        for state, poses, name in zip((s0, s1), (p0, self._poses(s1)), names):
+            if not np.isfinite(poses).all():
+                raise self._pose_error(state, poses, name)
         motions = motions_between(self.model, self.ellipsoids, s0, s1, "chain", body_ids=self.body_ids,
                                   kinematics=self._kin)
-        p0 = self._poses(s0)
         self._cached = None
         radii = self.ellipsoids.radii
         rmax = radii.max(axis=1)
@@ -361,7 +491,7 @@ class StepCheck:
 
     def __init__(self, monitor):
         if monitor._scene is None:
-            raise ValueError("monitor: the step check needs a rigid or affine motion and at least one pair")
+            raise InputError("monitor: the step check needs a rigid or affine motion and at least one pair")
         m = monitor.model
         self.monitor, self.model = monitor, m
         n = len(monitor.ellipsoids.radii)

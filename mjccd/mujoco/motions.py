@@ -5,7 +5,9 @@ import mujoco
 import numba
 import numpy as np
 
+from mjccd import _validate
 from mjccd import bernstein as bz
+from mjccd.errors import InputError, InputTypeError
 from mjccd.filters import relative_sweep
 from mjccd.motion import Affine, Ball, Chain, Fixed, Free, Hinge, Rigid, Static, w_of_translation
 from mjccd.quadric import static_status_pose
@@ -38,10 +40,10 @@ def as_state(model, value, field, mocap_from=None):
         try:
             qpos = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
-            raise ValueError(f"{field}: expected MjData, State or a qpos vector, got "
-                             f"{type(value).__name__}") from None
+            raise InputTypeError(f"{field}: expected MjData, State or a qpos vector, got "
+                                 f"{type(value).__name__}") from None
         if qpos.shape != (model.nq,):
-            raise ValueError(f"{field}: expected a qpos vector of length nq = {model.nq}, got shape {qpos.shape}")
+            raise InputError(f"{field}: expected a qpos vector of length nq = {model.nq}, got shape {qpos.shape}")
         src = mocap_from
         state = State(qpos.copy(), src.mocap_pos.copy() if src is not None else model.body_pos[
             model.body_mocapid >= 0].copy(), src.mocap_quat.copy() if src is not None else
@@ -50,9 +52,9 @@ def as_state(model, value, field, mocap_from=None):
         arr = getattr(state, name)
         if not np.all(np.isfinite(arr)):
             bad = int(np.flatnonzero(~np.isfinite(np.ravel(arr)))[0])
-            raise ValueError(f"{field}.{name}[{bad}]: is NaN or infinite")
+            raise InputError(f"{field}.{name}[{bad}]: is NaN or infinite")
     if state.qpos.shape != (model.nq,):
-        raise ValueError(f"{field}.qpos: expected length nq = {model.nq}, got {state.qpos.shape}")
+        raise InputError(f"{field}.qpos: expected length nq = {model.nq}, got {state.qpos.shape}")
     return state
 
 
@@ -264,7 +266,7 @@ def _hinge_path(a0, a1):
     if abs(a0) < np.pi and abs(a1) < np.pi:
         return 0.0, a0, a1
     if abs(a1 - a0) >= np.pi:
-        raise ValueError(f"hinge turns by {a1 - a0:.6g} rad in one step; the chain motion needs less than pi")
+        raise InputError(f"hinge turns by {a1 - a0:.6g} rad in one step; the chain motion needs less than pi")
     return a0, 0.0, a1 - a0
 
 
@@ -279,9 +281,11 @@ def interpolate_qpos(model, qpos0, qpos1, t):
 
     Hinges: ``tan(theta/2)`` linear in t (``theta = qpos - qpos0_ref``); slides:
     linear; ball and free joints: quaternion lerp (normalised) and position lerp.
+    ``t`` lies in [0, 1].
     """
-    q0 = np.asarray(qpos0, float)
-    q1 = np.asarray(qpos1, float)
+    q0 = _validate.vector(qpos0, model.nq, "qpos0")
+    q1 = _validate.vector(qpos1, model.nq, "qpos1")
+    t = _validate.time_bound(t, "t")
     out = (1.0 - t) * q0 + t * q1
     for j in range(model.njnt):
         adr = model.jnt_qposadr[j]
@@ -345,9 +349,9 @@ def _body_elements(model, body, state0, state1, poses0, poses1):
                 ref = model.qpos0[adr]
                 try:
                     off, a0, a1 = _hinge_path(state0.qpos[adr] - ref, state1.qpos[adr] - ref)
-                except ValueError as exc:
+                except InputError as exc:
                     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
-                    raise ValueError(f"joint {name!r}: {exc}") from None
+                    raise InputError(f"joint {name!r}: {exc}") from None
                 turn = [Fixed(np.zeros(3), np.r_[np.cos(off / 2), np.sin(off / 2) * model.jnt_axis[j]])] \
                     if off else []
                 rot = turn + [Hinge(model.jnt_axis[j], a0, a1)]
@@ -367,8 +371,8 @@ def motions_between(model, ellipsoids, state0, state1, motion="rigid", *, body_i
         motion: "rigid" (per-ellipsoid pose lerp), "affine" (centre and shape
             matrix lerp) or "chain" (joint-space interpolation down the tree).
     """
-    if motion not in MOTIONS:
-        raise ValueError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+    if not isinstance(motion, str) or motion not in MOTIONS:
+        raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
     s0 = as_state(model, state0, "state_t0")
     s1 = as_state(model, state1, "state_t1")
     kin = kinematics or Kinematics(model)

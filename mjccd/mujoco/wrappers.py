@@ -7,9 +7,9 @@ import mujoco
 import numpy as np
 from dm_env import specs
 
+from mjccd.errors import InputError, InputTypeError
 from mjccd.mujoco.ellipsoids import EllipsoidSet
-from mjccd.mujoco.monitor import CCDMonitor
-from mjccd.mujoco.motions import capture
+from mjccd.mujoco.monitor import CCDMonitor, step_count
 
 OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
 
@@ -21,7 +21,7 @@ def fitted_or_checked(model, ellipsoids, per):
 
         return fit_model(model, per=per)
     if not isinstance(ellipsoids, EllipsoidSet):
-        raise ValueError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
+        raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
     return ellipsoids
 
 
@@ -31,7 +31,7 @@ class DelegatingEnvironment(dm_env.Environment):
     def __init__(self, env):
         physics = getattr(env, "physics", None)
         if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
-            raise ValueError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
+            raise InputTypeError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
         self._env = env
 
     @property
@@ -66,26 +66,35 @@ class DelegatingEnvironment(dm_env.Environment):
 
 
 class SubstepRecorder:
-    """Checks every ``mj_step`` of a control step and collects what the monitor reports."""
+    """Checks every simulator step of a control step and collects what the monitor reports.
+
+    ``reports`` holds the :class:`~mjccd.mujoco.StepReport` of each step (``unstable`` where MuJoCo
+    met a bad state: that step is not checked), ``contacts`` the contacts they report.
+    """
 
     def __init__(self, monitor):
         self.monitor = monitor
         self.contacts = []
+        self.reports = []
         self.start_time = 0.0
 
     def begin(self, data):
         self.monitor.data = data
         self.contacts = []
+        self.reports = []
         self.start_time = float(data.time)
 
-    def substep(self, advance, data):
+    def substep(self, advance):
         """Advance the simulation by one step with ``advance()`` and check that step."""
-        s0 = capture(data)
-        advance()
-        self.monitor.check(s0, capture(data))
-        report = self.monitor.last_report
+        report = self.monitor.advance_checked(advance, f"substep {len(self.reports) + 1}")
+        self.reports.append(report)
         found = report.contacts if self.monitor.all_pairs else ((report.first,) if report.first else ())
         self.contacts.extend(found)
+
+    @property
+    def unstable(self):
+        """True when MuJoCo met a bad state in one of the steps recorded."""
+        return any(r.unstable for r in self.reports)
 
     def first(self):
         """The earliest contact of the control step, or None."""
@@ -122,7 +131,12 @@ class CCDWrapper(DelegatingEnvironment):
     ids, -1 when none), ``ccd/contact_point`` and ``ccd/contact_normal``
     (world frame, normal out of the first body; zeros when none or when the
     pair already overlapped at the start of a substep).  ``last_contacts``
-    holds the :class:`~mjccd.mujoco.StepContact` objects of the last step.
+    holds the :class:`~mjccd.mujoco.StepContact` objects of the last step,
+    ``last_reports`` the :class:`~mjccd.mujoco.StepReport` of each of its
+    substeps and ``last_unstable`` whether MuJoCo met a bad state in one of
+    them (that substep is not checked; see :attr:`~mjccd.mujoco.StepReport.unstable`).
+    As with dm-control's own stepping, such a substep raises ``PhysicsError``
+    unless the physics suppresses errors.
 
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
@@ -134,7 +148,7 @@ class CCDWrapper(DelegatingEnvironment):
                  all_pairs=False, report_overlapping=True, per="body"):
         super().__init__(env)
         if not isinstance(env.observation_spec(), Mapping):
-            raise ValueError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
+            raise InputError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
         physics = env.physics
         model = physics.model.ptr
         self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
@@ -143,6 +157,8 @@ class CCDWrapper(DelegatingEnvironment):
                                   report_overlapping=report_overlapping)
         self._recorder = SubstepRecorder(self.monitor)
         self.last_contacts = []
+        self.last_reports = []
+        self.last_unstable = False
 
     def _with_ccd(self, timestep, recorded):
         obs = collections.OrderedDict(timestep.observation)
@@ -154,20 +170,21 @@ class CCDWrapper(DelegatingEnvironment):
 
     def reset(self):
         self.last_contacts = []
+        self.last_reports = []
+        self.last_unstable = False
         return self._with_ccd(self._env.reset(), False)
 
     def step(self, action):
         physics = self._env.physics
         if physics.model.ptr is not self.monitor.model:
-            raise ValueError("env: the physics model was reloaded; wrap the environment again")
-        data = physics.data.ptr
+            raise InputError("env: the physics model was reloaded; wrap the environment again")
         recorder = self._recorder
-        recorder.begin(data)
+        recorder.begin(physics.data.ptr)
         original = physics.step
 
         def checked_step(nstep=1):
-            for _ in range(int(nstep)):
-                recorder.substep(lambda: original(1), data)
+            for _ in range(step_count(nstep, "nstep")):
+                recorder.substep(lambda: original(1))
 
         physics.step = checked_step
         try:
@@ -175,6 +192,8 @@ class CCDWrapper(DelegatingEnvironment):
         finally:
             del physics.step
         self.last_contacts = sorted(recorder.contacts, key=lambda c: c.time)
+        self.last_reports = list(recorder.reports)
+        self.last_unstable = recorder.unstable
         return self._with_ccd(timestep, True)
 
     def observation_spec(self):
@@ -188,6 +207,6 @@ def _model_and_data(env):
     base = getattr(env, "unwrapped", env)
     model, data = getattr(base, "model", None), getattr(base, "data", None)
     if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
-        raise ValueError(f"env: expected a Gymnasium MuJoCo environment with `model` and `data`, "
-                         f"got {type(base).__name__}")
+        raise InputTypeError(f"env: expected a Gymnasium MuJoCo environment with `model` and `data`, "
+                             f"got {type(base).__name__}")
     return base, model, data

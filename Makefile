@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.mjccd-installed
 
-.PHONY: demo test bench tunneling clean
+.PHONY: demo test bench bench-quick tunneling clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -21,6 +21,10 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) -m pip install -q -e ".[bench]"
 	$(VENV)/bin/mjccd bench core
+
+# every bench suite on small sizes and the packaged data: a smoke test of a few seconds each once compiled
+bench-quick: $(STAMP)
+	for suite in core scene monitor patches; do $(VENV)/bin/mjccd bench $$suite --quick || exit 1; done
 
 # MuJoCo >= 4 in an environment of its own: the speculative-contacts peer of the tunneling benchmark
 MJ4 := .venv-mujoco4/bin/python

@@ -21,13 +21,14 @@ import numpy as np
 from tqdm import tqdm
 
 import mjccd
-from mjccd.bench import peers
+from mjccd.bench import options, peers
 from mjccd.bench.report import write_section
 from mjccd.ccd import rigid_first_contact
 from mjccd.quadric import static_status_batch
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-EXAMPLE_CASES = os.path.join(HERE, "..", "..", "examples", "cases.json")
+EXAMPLE_CASES = options.packaged("cases.json")  # examples/cases.json in the repository
+QUICK = {"queries": 10, "repeats": 2, "static_pairs": 2000}
+RANGES = {"queries": (1, 100_000), "repeats": (1, 1000), "static_pairs": (2, 5_000_000), "seed": (0, 2**63 - 1)}
 
 
 def _median_us(fn, repeats):
@@ -198,9 +199,10 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-peers", action="store_true", help="skip python-fcl and MuJoCo sampling")
     parser.add_argument("--markdown", metavar="FILE", help="write the tables into this markdown file")
-    args = parser.parse_args(argv)
-    if args.queries < 1 or args.repeats < 1 or args.static_pairs < 2:
-        parser.error("--queries and --repeats must be >= 1, --static-pairs >= 2")
+    options.add_quick(parser, QUICK)
+    args = options.parse(parser, argv, QUICK)
+    options.check_ranges(parser, args, RANGES)
+    options.check_markdown(parser, args.markdown)
     rows, peer_rows = run(args.queries, args.repeats, args.static_pairs, args.seed, not args.no_peers)
     command = "mjccd bench core" + ("" if argv is None else " " + " ".join(argv))
     text = markdown(rows, peer_rows, command)

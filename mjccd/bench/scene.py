@@ -17,7 +17,6 @@
 """
 import argparse
 import os
-import pathlib
 import platform
 import statistics
 import time
@@ -26,7 +25,9 @@ import numba
 import numpy as np
 
 from mjccd import replay
+from mjccd.bench import options
 from mjccd.bench.report import write_section
+from mjccd.errors import InputError
 from mjccd.ccd import exact_pair
 from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, UNCERTAIN,
                          Scene, pairs_between, read_ticks)
@@ -163,12 +164,15 @@ def boxing_workload(n_frames=1000, *, seed=0, fps=60.0):
     return poses, radii, pairs_between(range(20), range(20, 40))
 
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-BOXING_MODEL = ROOT / "models" / "boxing.xml"
-BOXING_TRAJ = ROOT / "data" / "boxing_traj.npz"
+BOXING_MODEL = options.packaged("boxing.xml")  # models/boxing.xml in the repository
+BOXING_TRAJ = "data/boxing_traj.npz"  # in the repository only: 1.5 MB
+QUICK = {"frames": 20, "real_frames": 20, "table3_frames": 200, "repeats": 1, "samples": [10],
+         "traj": options.packaged("boxing_traj_first150.npz")}
+RANGES = {"frames": (2, 100_000), "real_frames": (0, 10**9), "table3_frames": (2, 1_000_000),
+          "repeats": (1, 1000), "samples": (1, 10_000), "seed": (0, 2**63 - 1)}
 
 
-def real_boxing_workload(model_path=BOXING_MODEL, traj_path=BOXING_TRAJ, n_frames=None):
+def real_boxing_workload(model_path, traj_path, n_frames=None):
     """The CMU boxing replay: poses (F + 1, N, 7) of the model's bounding ellipsoids, radii (N, 3), pairs (P, 2).
 
     Poses come from MuJoCo's kinematics at every recorded qpos (as in
@@ -569,8 +573,11 @@ def main(argv=None):
     parser.add_argument("--frames", type=int, default=1000, help="synthetic boxing frames (default 1000)")
     parser.add_argument("--real-frames", type=int, default=0,
                         help="frames of the real boxing replay (default 0: all)")
-    parser.add_argument("--model", default=str(BOXING_MODEL), help="MJCF model of the real boxing replay")
-    parser.add_argument("--traj", default=str(BOXING_TRAJ), help="trajectory (.npz) of the real boxing replay")
+    parser.add_argument("--model", default=BOXING_MODEL, help="MJCF model of the real boxing replay "
+                                                              "(default: models/boxing.xml, shipped with the package)")
+    parser.add_argument("--traj", help=f"trajectory (.npz) of the real boxing replay (default: {BOXING_TRAJ} of the "
+                                       "source repository; with --quick its first 150 frames, shipped with the "
+                                       "package)")
     parser.add_argument("--table3-frames", type=int, default=10000, help="Table 3 frames (default 10000)")
     parser.add_argument("--repeats", type=int, default=5, help="timed repeats of each batched run (default 5)")
     parser.add_argument("--samples", type=int, nargs="*", default=[10, 100], help="MuJoCo samples per frame")
@@ -579,13 +586,20 @@ def main(argv=None):
     parser.add_argument("--no-mujoco", action="store_true", help="skip MuJoCo sampling")
     parser.add_argument("--only", choices=["boxing", "table3"], help="run one part only")
     parser.add_argument("--markdown", metavar="FILE", help="write the tables to this markdown file")
-    args = parser.parse_args(argv)
-    if (args.frames < 2 or args.table3_frames < 2 or args.repeats < 1 or args.real_frames < 0
-            or any(n < 1 for n in args.samples)):
-        parser.error("--frames and --table3-frames must be >= 2, --repeats and --samples >= 1, --real-frames >= 0")
+    options.add_quick(parser, QUICK)
+    args = options.parse(parser, argv, QUICK)
+    options.check_ranges(parser, args, RANGES)
+    inputs = ()
+    if args.only != "table3":
+        args.traj = options.repository_input(parser, "--traj", args.traj, BOXING_TRAJ, "1.5 MB")
+        inputs = (args.model, args.traj)
+    options.check_markdown(parser, args.markdown, inputs)
     boxing, t3, mj = [], [], {}
     if args.only != "table3":
-        real = real_boxing_workload(args.model, args.traj, args.real_frames)
+        try:
+            real = real_boxing_workload(args.model, args.traj, args.real_frames)
+        except InputError as exc:
+            parser.error(str(exc))
         boxing.append(bench_boxing("real CMU boxing", *real, args.repeats, not args.no_verify))
         synthetic = boxing_workload(args.frames, seed=args.seed)
         boxing.append(bench_boxing("synthetic boxers", *synthetic, args.repeats, not args.no_verify))

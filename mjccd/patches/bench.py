@@ -4,7 +4,9 @@ Table 1: random moving patch pairs (triangular and quadrilateral, order 1-3), av
 milliseconds per case for Trad./Ours x AABB/OBB x delta, colliding pairs, speed-ups.
 Table 3: the vertex-face / edge-edge query sets in ``data/ccd-queries`` with ground
 truth: mean and median microseconds per query, false positives and false negatives,
-next to ipctk's Tight-Inclusion CCD when that package is installed.
+next to ipctk's Tight-Inclusion CCD when that package is installed.  The query sets
+(1.8 MB) stay in the source repository; the package ships one small scene of each
+(``mjccd/bench/data/ccd-queries``), which ``--quick`` uses.
 """
 import argparse
 import platform
@@ -14,6 +16,9 @@ import sys
 import time
 
 import numpy as np
+
+from mjccd.bench import options
+from mjccd.files import write_text
 
 from . import _kernels as K
 from . import queries as Q
@@ -257,8 +262,22 @@ def run_table3(args):
 
 
 # ------------------------------------------------------------------------ CLI
-def _floats(text):
-    return [float(x) for x in text.split(",") if x]
+QUICK = {"cases": 2, "orders": [1], "deltas": [1e-4], "trad_max_iterations": 10_000, "max_queries": 10,
+         "query_max_iterations": 10_000, "data": options.packaged("ccd-queries")}
+RANGES = {"cases": (1, 100_000), "orders": (1, 3), "deltas": (1e-15, 0.5), "trad_max_iterations": (1, 10**10),
+          "trad_max_nodes": (1, 1 << 26), "seed": (0, 2**63 - 1), "max_queries": (0, 10**9),
+          "query_max_iterations": (1, 10**10)}
+QUERY_SETS = "data/ccd-queries"  # in the repository only: 1.8 MB
+
+
+def _numbers(kind):
+    """A parser of comma-separated numbers of ``kind`` (int or float) for argparse."""
+    def parse(text):
+        try:
+            return [kind(x) for x in text.split(",") if x]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected comma-separated {kind.__name__}s, got {text!r}") from None
+    return parse
 
 
 def _names(allowed):
@@ -287,18 +306,25 @@ def machine_line():
             f"single-threaded queries")
 
 
-def update_markdown(path, key, body):
-    """Replace (or append) the block between ``<!-- key start -->`` and ``<!-- key end -->``."""
-    start, end = f"<!-- {key} start -->", f"<!-- {key} end -->"
-    block = f"{start}\n{body.rstrip()}\n{end}\n"
-    text = open(path).read() if os.path.exists(path) else ""
-    pattern = re.compile(re.escape(start) + r".*?" + re.escape(end) + r"\n?", re.S)
-    if pattern.search(text):
-        text = pattern.sub(lambda _: block, text)
+def update_markdown(path, sections):
+    """Replace (or append) each block between ``<!-- key start -->`` and ``<!-- key end -->``, in one atomic write.
+
+    ``sections``: (key, body) pairs.
+    """
+    if os.path.exists(path):
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
     else:
-        text = text.rstrip() + ("\n\n" if text.strip() else "") + block
-    with open(path, "w") as fh:
-        fh.write(text)
+        text = ""
+    for key, body in sections:
+        start, end = f"<!-- {key} start -->", f"<!-- {key} end -->"
+        block = f"{start}\n{body.rstrip()}\n{end}\n"
+        pattern = re.compile(re.escape(start) + r".*?" + re.escape(end) + r"\n?", re.S)
+        if pattern.search(text):
+            text = pattern.sub(lambda _: block, text)
+        else:
+            text = text.rstrip() + ("\n\n" if text.strip() else "") + block
+    write_text(path, text)
 
 
 def build_parser():
@@ -309,8 +335,8 @@ def build_parser():
     p.add_argument("--table", choices=["1", "3", "all"], default="all")
     p.add_argument("--cases", type=int, default=1000, help="Table 1 cases per primitive")
     p.add_argument("--kinds", type=_names(["triangle", "quad"]), default=["triangle", "quad"])
-    p.add_argument("--orders", type=lambda s: [int(x) for x in s.split(",")], default=[1, 2, 3])
-    p.add_argument("--deltas", type=_floats, default=[1e-4, 1e-5, 1e-6])
+    p.add_argument("--orders", type=_numbers(int), default=[1, 2, 3], help="patch orders, 1 to 3")
+    p.add_argument("--deltas", type=_numbers(float), default=[1e-4, 1e-5, 1e-6])
     p.add_argument("--methods", type=_names(list(VARIANTS)), default=["trad", "ours"],
                    help="trad: Alg. 1 with the queue ordered by the lower time end (as in the "
                         "paper); ours: Alg. 2 with this package's queue order; trad-depth / "
@@ -325,7 +351,8 @@ def build_parser():
     p.add_argument("--seed", type=int, default=2024)
     p.add_argument("--sets", type=_names(["handcrafted", "simulation"]),
                    default=["handcrafted", "simulation"])
-    p.add_argument("--data", default=str(Q.DATA_ROOT), help="root of the copied query sets")
+    p.add_argument("--data", help=f"root of the copied query sets (default: {QUERY_SETS} of the source "
+                                  "repository; with --quick one small scene of each set, shipped with the package)")
     p.add_argument("--max-queries", type=int, default=0,
                    help="Table 3: an evenly spaced subset of N queries per set and kind")
     p.add_argument("--query-max-iterations", type=int, default=1_000_000,
@@ -338,26 +365,44 @@ def build_parser():
     p.add_argument("--label", default="", type=lambda x: f"-{x}" if x else "",
                    help="suffix of the markdown section name, to keep several runs")
     p.add_argument("--no-progress", dest="progress", action="store_false")
+    options.add_quick(p, QUICK)
     return p
+
+
+def _check_query_sets(parser, args):
+    """Stop with a usage error unless ``args.data`` holds every set and kind Table 3 will read."""
+    args.data = options.repository_input(parser, "--data", args.data, QUERY_SETS, "1.8 MB")
+    if not os.path.isdir(args.data):
+        parser.error(f"--data: no such folder: {args.data}")
+    found = Q.dataset_files(args.data)
+    for name in args.sets:
+        for kind in ("vf", "ee"):
+            if (name, kind) not in found:
+                parser.error(f"--data: no {name} {kind.upper()} query files under {args.data}")
 
 
 def main(argv):
     """Entry point of ``mjccd bench patches``; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = options.parse(parser, argv, QUICK)
+    options.check_ranges(parser, args, RANGES)
+    for dest in ("kinds", "methods", "inclusions", "sets"):
+        if not getattr(args, dest):
+            parser.error(f"--{dest}: expected at least one value")
+    if args.table in ("3", "all"):
+        _check_query_sets(parser, args)
+    options.check_markdown(parser, args.markdown)
     command = "mjccd bench patches " + " ".join(argv)
     print(f"# machine: {machine_line()}")
+    sections = []
     if args.table in ("1", "all"):
         lines, _ = run_table1(args)
-        if args.markdown:
-            body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
-                    + "\n".join(lines) + "\n")
-            update_markdown(args.markdown, "mjccd-bench-patches-table1" + args.label, body)
+        sections.append(("mjccd-bench-patches-table1" + args.label, lines))
     if args.table in ("3", "all"):
-        lines = run_table3(args)
-        if args.markdown:
-            body = (f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
-                    + "\n".join(lines) + "\n")
-            update_markdown(args.markdown, "mjccd-bench-patches-table3" + args.label, body)
+        sections.append(("mjccd-bench-patches-table3" + args.label, run_table3(args)))
+    if args.markdown:
+        header = f"Command: `{command}`  \nMachine: {machine_line()}\n\n"
+        update_markdown(args.markdown, [(key, header + "\n".join(lines) + "\n") for key, lines in sections])
     return 0
 
 

@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/mjccd replay models/boxing.xml data/boxing_traj.npz --out replay-out
+	$(VENV)/bin/mjccd replay models/boxing.xml data/boxing_traj.npz --out replay-out --force
 
 test: $(STAMP)
 	$(PY) -m pytest

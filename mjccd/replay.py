@@ -13,6 +13,12 @@ Inputs are checked before any work: a bad model or trajectory stops with a
 :class:`ReplayError` naming the file and the problem.  The frames run in
 chunks; Ctrl-C is acted on between chunks, never inside compiled code.
 
+Memory does not grow with the number of frames: an .npz trajectory is read
+:data:`READ_FRAMES` frames at a time (:class:`Trajectory`: one pass that
+checks every frame, then one that replays them), and the replay keeps only
+what it reports (the first contacts, the runs of frames each pair spends in
+contact, the counters).
+
 Outputs: a table of first contacts, ``contacts.json``, ``contacts.csv``,
 ``timeline.png`` and, where an OpenGL backend works, a few rendered frames,
 written all-or-nothing into an :class:`mjccd.files.OutputFolder`.
@@ -27,12 +33,13 @@ import sys
 import time as _time
 import zipfile
 import zlib
-from contextlib import contextmanager
+from contextlib import ExitStack, closing, contextmanager
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
-from mjccd import interrupts
+from mjccd import interrupts, npz_stream
 from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 
@@ -43,8 +50,10 @@ COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlap
                  "colliding", "pruned", "uncertain")
 OUTPUT_PATTERNS = ("contacts.json", "contacts.csv", "timeline.png", "frame_*.png")  # every file replay writes
 # frame intervals per chunk of compiled work (Ctrl-C and the progress bar act between chunks): a few
-# milliseconds of scene kernels, or one frame of the much slower chain motion
-CHUNK_FRAMES = {"rigid": 64, "affine": 64, "chain": 1}
+# milliseconds of scene kernels; chain frames whose pairs pass the filters cost an exact solve (ms) each
+CHUNK_FRAMES = {"rigid": 64, "affine": 64, "chain": 16}
+READ_FRAMES = 4096  # frames read from a trajectory .npz at a time (5.6 MB of qpos for the boxing scene)
+PLOT_BARS = 4000    # a timeline row with more contact runs (or first contacts) is thinned to about this many
 NPZ_ARRAYS = ("qpos", "time", "keyframes")  # the arrays a trajectory .npz may hold
 RADIUS_RANGE = (1e-6, 1e6)   # metres; semi-axes outside it overflow or lose all precision in the solver
 COORDINATE_LIMIT = 1e6   # largest |qpos| value and ellipsoid centre coordinate (metres), for the same reason
@@ -166,29 +175,17 @@ def load_trajectory(traj, model):
     Refuses, naming the file and the frame, what MuJoCo would silently change
     (a zero joint quaternion) and what the solver cannot use (NaN, infinity,
     values beyond :data:`COORDINATE_LIMIT`, complex numbers); ``time``, when
-    given, must increase.
+    given, must increase.  These are whole arrays: :class:`Trajectory` reads
+    the same file, with the same checks, a few frames at a time.
     """
-    path = _input_file(traj, "trajectory")
-    suffix = path.suffix.lower()
-    if suffix == ".bvh":
-        from mjccd import bvh
-
-        _, qpos, time, _ = bvh.import_bvh(path)
-    elif suffix == ".npz":
-        arrays = read_npz(path)
-        qpos, time = arrays["qpos"], arrays.get("time")
-    else:
-        raise ReplayError(f"{traj}: unknown trajectory type {path.suffix!r} (expected .npz or .bvh)")
-    qpos = check_qpos(qpos, model, traj)
-    if time is None:
-        time = np.arange(qpos.shape[0]) * model.opt.timestep
-    return qpos, _check_time(time, qpos.shape[0], traj)
+    trajectory = Trajectory(traj, model)
+    return trajectory.qpos(), trajectory.times()
 
 
 def load_keyframes(traj, model):
     """The ``keyframes`` (K >= 2, nq) of a trajectory .npz, checked like ``qpos`` (for ``--intervals``)."""
     path = _input_file(traj, "trajectory")
-    arrays = read_npz(path) if path.suffix.lower() == ".npz" else {}
+    arrays = read_npz(path, keep=("keyframes",)) if path.suffix.lower() == ".npz" else {}
     if "keyframes" not in arrays:
         raise ReplayError(f"{traj}: --intervals needs an .npz with a 'keyframes' array (K x nq)")
     return check_qpos(arrays["keyframes"], model, traj, "keyframes")
@@ -204,8 +201,31 @@ def _input_file(name, what):
     return path
 
 
-def read_npz(path):
-    """The arrays of a trajectory .npz by name; a file that is not one, or unknown arrays, raise ReplayError."""
+def read_npz(path, keep=None):
+    """The arrays of a trajectory .npz by name; a file that is not one, or unknown arrays, raise ReplayError.
+
+    ``keep``: the names of the arrays to return (default: all); the others are read through and
+    dropped, so that a damaged one is refused all the same.
+    """
+    arrays = {}
+    with _npz_archive(path) as (npz, names):
+        for name in names:
+            with npz_stream.Member(npz, name) as member:
+                if keep is None or name in keep:
+                    arrays[name] = member.read()
+                else:
+                    member.discard()
+    return arrays
+
+
+@contextmanager
+def _npz_archive(path):
+    """The open archive (a ``numpy.lib.npyio.NpzFile``) of a trajectory .npz and its sorted array names.
+
+    Refuses a file that is not an .npz, one without ``qpos`` and one with unknown arrays; inside
+    the ``with``, what reading the archive raises (a damaged or truncated member, a bad .npy
+    header, an object array) becomes a :class:`ReplayError` naming the file.
+    """
     expected = "expected an .npz archive (a zip of .npy arrays) with 'qpos' and 'time'"
     try:
         with open(path, "rb") as fh:
@@ -219,15 +239,15 @@ def read_npz(path):
     if not head.startswith(b"PK"):
         raise ReplayError(f"{path}: not a zip file, {expected}")
     try:
-        with np.load(path, allow_pickle=False) as data:
-            names = sorted(data.files)
+        with npz_stream.open_npz(path) as npz:
+            names = sorted(npz.files)
             if "qpos" not in names:
                 raise ReplayError(f"{path}: no 'qpos' array (has {names})")
             extra = [n for n in names if n not in NPZ_ARRAYS]
             if extra:
                 raise ReplayError(f"{path}: unexpected arrays {extra} (a trajectory holds 'qpos', "
                                   "optionally 'time' and 'keyframes')")
-            return {name: data[name] for name in names}
+            yield npz, names
     except ReplayError:
         raise
     except zipfile.BadZipFile as exc:
@@ -236,46 +256,275 @@ def read_npz(path):
         raise ReplayError(f"{path}: not a readable .npz archive ({_reason(exc)})") from None
 
 
+class Trajectory:
+    """A trajectory file, checked frame by frame when opened, then read :attr:`read_frames` frames at a time.
+
+    Opening an .npz reads every frame once and refuses what :func:`load_trajectory` refuses,
+    with the same messages (file, frame, joint) and in the same order, keeping none of the
+    frames; :meth:`chunks` then reads them again, in order.  Memory does not grow with the
+    number of frames, except for a ``qpos`` stored in Fortran order (read whole, it cannot be
+    read by rows) and a .bvh clip (converted whole by :mod:`mjccd.bvh` and kept).
+    """
+
+    def __init__(self, traj, model, read_frames=READ_FRAMES):
+        if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):
+            raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
+        self.source = traj
+        self.model = model
+        self.read_frames = int(read_frames)
+        self.path = _input_file(traj, "trajectory")
+        self.has_time = False   # an .npz with a 'time' array (else time = frame * model.opt.timestep)
+        self._arrays = None     # (qpos, time) of a .bvh clip
+        suffix = self.path.suffix.lower()
+        if suffix == ".bvh":
+            from mjccd import bvh
+
+            _, qpos, time, _ = bvh.import_bvh(self.path)
+            qpos = check_qpos(qpos, model, traj)
+            if time is None:
+                time = self._computed_times(0, qpos.shape[0])
+            self._arrays = qpos, _check_time(time, qpos.shape[0], traj)
+            self.n_frames = qpos.shape[0]
+        elif suffix == ".npz":
+            self.n_frames = self._scan()
+        else:
+            raise ReplayError(f"{traj}: unknown trajectory type {self.path.suffix!r} (expected .npz or .bvh)")
+
+    def _computed_times(self, first, stop):
+        return np.arange(first, stop) * self.model.opt.timestep
+
+    def _scan(self):
+        """Read and check every array of the .npz; the number of frames.
+
+        Read errors stop at once (members in name order, as :func:`read_npz` reads them); the
+        problems of the values are kept until every member has been read, then the first
+        ``qpos`` problem, else the first ``time`` problem, is raised.
+        """
+        qpos_problem = time_problem = None
+        frames = 0
+        with _npz_archive(self.path) as (npz, names):
+            for name in names:  # 'keyframes' < 'qpos' < 'time'
+                with npz_stream.Member(npz, name) as member:
+                    if name == "qpos":
+                        qpos_problem, frames = self._scan_qpos(member)
+                    elif name == "time":
+                        self.has_time = True
+                        if qpos_problem is None:
+                            time_problem = self._scan_time(member, frames)
+                        else:
+                            member.discard()
+                    else:
+                        member.discard()
+        if qpos_problem is None and not self.has_time:
+            check = _TimeCheck(self.source)
+            for first in range(0, frames, self.read_frames):
+                check.values(self._computed_times(first, min(first + self.read_frames, frames)), first)
+            time_problem = check.finish()
+        problem = qpos_problem or time_problem
+        if problem:
+            raise ReplayError(problem)
+        return frames
+
+    def _scan_qpos(self, member):
+        """(the problem :func:`check_qpos` would report, or None; frames) of the ``qpos`` member."""
+        problem = (_member_problem(member, self.source, "qpos")
+                   or _qpos_shape_problem(_checked_shape(member), self.model, self.source, "qpos"))
+        if problem:
+            member.discard()
+            return problem, 0
+        check = _QposCheck(self.model, self.source)
+        first = 0
+        for rows in member.rows(self.read_frames):
+            check.rows(np.ascontiguousarray(rows, dtype=np.float64), first)
+            first += len(rows)
+        return check.finish(), member.shape[0]
+
+    def _scan_time(self, member, frames):
+        """The problem :func:`_check_time` would report for the ``time`` member, or None."""
+        problem = _member_problem(member, self.source, "time")
+        if problem is None and _checked_shape(member) != (frames,):
+            problem = f"{self.source}: time must have shape ({frames},), got {_checked_shape(member)}"
+        if problem:
+            member.discard()
+            return problem
+        check = _TimeCheck(self.source)
+        first = 0
+        for values in member.rows(self.read_frames):
+            check.values(np.ascontiguousarray(values, dtype=np.float64), first)
+            first += len(values)
+        return check.finish()
+
+    def _changed(self):
+        return ReplayError(f"{self.source}: the trajectory file changed after it was checked; replay it again")
+
+    def chunks(self):
+        """``(first, qpos (r, nq), time (r,))``, float64, for frames ``first`` to ``first + r - 1``, in order.
+
+        The frames are checked again as they are read (a file changed since it was opened is
+        refused, not replayed).
+        """
+        step = self.read_frames
+        if self._arrays is not None:
+            qpos, time = self._arrays
+            for first in range(0, self.n_frames, step):
+                yield first, qpos[first:first + step], time[first:first + step]
+            return
+        qpos_check, time_check = _QposCheck(self.model, self.source), _TimeCheck(self.source)
+        first = 0
+        with _npz_archive(self.path) as (npz, _), ExitStack() as members:
+            member = members.enter_context(npz_stream.Member(npz, "qpos"))
+            if not member.is_array or tuple(member.shape) != (self.n_frames, self.model.nq):
+                raise self._changed()
+            times = None
+            if self.has_time:
+                time_member = members.enter_context(npz_stream.Member(npz, "time"))
+                if not time_member.is_array or tuple(time_member.shape) != (self.n_frames,):
+                    raise self._changed()
+                times = time_member.rows(step)
+            for rows in member.rows(step):
+                qpos = np.ascontiguousarray(rows, dtype=np.float64)
+                if times is None:
+                    time = self._computed_times(first, first + len(qpos))
+                else:
+                    time = next(times, None)
+                    if time is None or len(time) != len(qpos):
+                        raise self._changed()
+                    time = np.ascontiguousarray(time, dtype=np.float64)
+                qpos_check.rows(qpos, first)
+                time_check.values(time, first)
+                problem = qpos_check.finish() or time_check.finish()
+                if problem:
+                    raise ReplayError(problem)
+                yield first, qpos, time
+                first += len(qpos)
+        if first != self.n_frames:
+            raise self._changed()
+
+    def qpos(self):
+        """The whole (T, nq) ``qpos``, read again from the file (a .bvh clip: the converted one)."""
+        if self._arrays is not None:
+            return self._arrays[0]
+        with _npz_archive(self.path) as (npz, _):
+            with npz_stream.Member(npz, "qpos") as member:
+                values = member.read()
+        return check_qpos(values, self.model, self.source)
+
+    def times(self):
+        """The whole (T,) frame times, read again from the file or computed from the model's timestep."""
+        if self._arrays is not None:
+            return self._arrays[1]
+        if not self.has_time:
+            return self._computed_times(0, self.n_frames)
+        with _npz_archive(self.path) as (npz, _):
+            with npz_stream.Member(npz, "time") as member:
+                values = member.read()
+        return _check_time(values, self.n_frames, self.source)
+
+
+def _dtype_problem(dtype, source, field):
+    """Why an array of ``dtype`` cannot be used as real numbers (None: it can)."""
+    if dtype.kind == "c":
+        return f"{source}: {field} holds complex numbers ({dtype}); expected real numbers"
+    if dtype.kind not in "fiu":
+        return f"{source}: {field} has dtype {dtype}, expected real numbers"
+    return None
+
+
+def _member_problem(member, source, field):
+    """What :func:`_real_array` would refuse in an .npz member, known from its header alone (None: nothing)."""
+    if not member.is_array:
+        return f"{source}: {field} is not a numpy array (got bytes)"
+    return _dtype_problem(member.dtype, source, field)
+
+
+def _checked_shape(member):
+    """The shape :func:`_real_array` gives the member's array (it makes a 0-d array 1-d)."""
+    return tuple(member.shape) if len(member.shape) else np.ascontiguousarray(np.float64(0.0)).shape
+
+
 def _real_array(values, source, field):
     """``values`` as float64, refusing complex numbers (their imaginary part would be lost) and non-numbers."""
     if not isinstance(values, np.ndarray):
         raise ReplayError(f"{source}: {field} is not a numpy array (got {type(values).__name__})")
-    if values.dtype.kind == "c":
-        raise ReplayError(f"{source}: {field} holds complex numbers ({values.dtype}); expected real numbers")
-    if values.dtype.kind not in "fiu":
-        raise ReplayError(f"{source}: {field} has dtype {values.dtype}, expected real numbers")
+    problem = _dtype_problem(values.dtype, source, field)
+    if problem:
+        raise ReplayError(problem)
     return np.ascontiguousarray(values, dtype=np.float64)
+
+
+def _qpos_shape_problem(shape, model, source, field):
+    """Why ``qpos`` of this shape does not fit the model (None: it does)."""
+    if len(shape) != 2 or shape[1] != model.nq:
+        return f"{source}: {field} must have shape (T, {model.nq}) for this model, got {shape}"
+    if shape[0] < 2:
+        return f"{source}: {field} needs at least 2 frames, got {shape[0]}"
+    return None
 
 
 def check_qpos(values, model, source, field="qpos"):
     """(T >= 2, nq) joint positions as float64; errors name ``source``, ``field``, the frame and the joint."""
-    import mujoco
-
     qpos = _real_array(values, source, field)
-    if qpos.ndim != 2 or qpos.shape[1] != model.nq:
-        raise ReplayError(f"{source}: {field} must have shape (T, {model.nq}) for this model, got {qpos.shape}")
-    if qpos.shape[0] < 2:
-        raise ReplayError(f"{source}: {field} needs at least 2 frames, got {qpos.shape[0]}")
-    joint_of = _qpos_joints(model)
-    bad = np.argwhere(~(np.abs(qpos) <= COORDINATE_LIMIT))  # NaN fails too
-    if len(bad):
-        k, a = bad[0]
-        problem = "is not a finite number" if not np.isfinite(qpos[k, a]) else f"is beyond ±{COORDINATE_LIMIT:g}"
-        raise ReplayError(f"{source}: {field}[{k}, {a}] = {qpos[k, a]:g} (frame {k}, joint {joint_of[a]!r}) "
-                          f"{problem}")
-    quaternion_kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball"}
-    for j in range(model.njnt):
-        kind_name = quaternion_kinds.get(int(model.jnt_type[j]))
-        if kind_name is None:
-            continue
-        a = model.jnt_qposadr[j] + (3 if kind_name == "free" else 0)
-        norms = np.linalg.norm(qpos[:, a:a + 4], axis=1)
-        zero = np.nonzero(norms < MIN_QUATERNION_NORM)[0]
-        if len(zero):
-            raise ReplayError(f"{source}: {field}[{zero[0]}, {a}:{a + 4}] (frame {zero[0]}): the quaternion of "
-                              f"{kind_name} joint {_joint_name(model, j)!r} is zero (norm {norms[zero[0]]:g}); "
-                              "MuJoCo would silently make it the identity")
+    problem = _qpos_shape_problem(qpos.shape, model, source, field)
+    if problem is None:
+        check = _QposCheck(model, source, field)
+        check.rows(qpos, 0)
+        problem = check.finish()
+    if problem:
+        raise ReplayError(problem)
     return qpos
+
+
+class _QposCheck:
+    """The value checks of :func:`check_qpos`, fed the frames a chunk at a time, in order.
+
+    :meth:`finish` gives the message check_qpos would give for all the frames fed: the first
+    value (frame by frame, then joint by joint) that is not finite or beyond
+    :data:`COORDINATE_LIMIT`, else the first zero quaternion of the first joint that has one.
+    """
+
+    def __init__(self, model, source, field="qpos"):
+        import mujoco
+
+        self.source, self.field = source, field
+        self.joint_of = _qpos_joints(model)
+        kinds = {int(mujoco.mjtJoint.mjJNT_FREE): "free", int(mujoco.mjtJoint.mjJNT_BALL): "ball"}
+        self.quaternions = []   # (joint, kind, qpos address of its quaternion, name)
+        for j in range(model.njnt):
+            kind_name = kinds.get(int(model.jnt_type[j]))
+            if kind_name is not None:
+                a = model.jnt_qposadr[j] + (3 if kind_name == "free" else 0)
+                self.quaternions.append((j, kind_name, a, _joint_name(model, j)))
+        self.beyond = None      # message of the first value beyond the limit
+        self.zero = {}          # joint -> message of its first zero quaternion
+
+    def rows(self, qpos, first):
+        """Check the float64 frames ``qpos`` (r, nq), frame numbers ``first`` to ``first + r - 1``."""
+        if self.beyond is not None:
+            return
+        bad = np.argwhere(~(np.abs(qpos) <= COORDINATE_LIMIT))  # NaN fails too
+        if len(bad):
+            k, a = bad[0]
+            problem = "is not a finite number" if not np.isfinite(qpos[k, a]) else f"is beyond ±{COORDINATE_LIMIT:g}"
+            frame = first + k
+            self.beyond = (f"{self.source}: {self.field}[{frame}, {a}] = {qpos[k, a]:g} (frame {frame}, joint "
+                           f"{self.joint_of[a]!r}) {problem}")
+            return
+        for j, kind_name, a, name in self.quaternions:
+            if j in self.zero:
+                continue
+            norms = np.linalg.norm(qpos[:, a:a + 4], axis=1)
+            zero = np.nonzero(norms < MIN_QUATERNION_NORM)[0]
+            if len(zero):
+                frame = first + zero[0]
+                self.zero[j] = (f"{self.source}: {self.field}[{frame}, {a}:{a + 4}] (frame {frame}): the quaternion "
+                                f"of {kind_name} joint {name!r} is zero (norm {norms[zero[0]]:g}); "
+                                "MuJoCo would silently make it the identity")
+
+    def finish(self):
+        """The message of the problem found so far (None: none)."""
+        if self.beyond is not None:
+            return self.beyond
+        return self.zero[min(self.zero)] if self.zero else None
 
 
 def _joint_name(model, j):
@@ -299,14 +548,44 @@ def _check_time(values, n, source):
     time = _real_array(values, source, "time")
     if time.shape != (n,):
         raise ReplayError(f"{source}: time must have shape ({n},), got {time.shape}")
-    bad = np.nonzero(~(np.abs(time) <= TIME_LIMIT))[0]
-    if len(bad):
-        raise ReplayError(f"{source}: time[{bad[0]}] = {time[bad[0]]:g} must be finite and within "
-                          f"±{TIME_LIMIT:g} s")
-    if np.any(np.diff(time) <= 0):
-        k = int(np.nonzero(np.diff(time) <= 0)[0][0])
-        raise ReplayError(f"{source}: time must increase, but time[{k + 1}] <= time[{k}]")
+    check = _TimeCheck(source)
+    check.values(time, 0)
+    problem = check.finish()
+    if problem:
+        raise ReplayError(problem)
     return time
+
+
+class _TimeCheck:
+    """The value checks of :func:`_check_time`, fed the times a chunk at a time, in order.
+
+    :meth:`finish` gives the message _check_time would give for all the times fed: the first
+    time that is not finite or beyond :data:`TIME_LIMIT`, else the first that does not increase.
+    """
+
+    def __init__(self, source):
+        self.source = source
+        self.bad = self.back = None
+        self.last = None   # the last time fed
+
+    def values(self, time, first):
+        """Check the float64 times ``time`` (r,) of frames ``first`` to ``first + r - 1``."""
+        if self.bad is None:
+            bad = np.nonzero(~(np.abs(time) <= TIME_LIMIT))[0]
+            if len(bad):
+                self.bad = (f"{self.source}: time[{first + bad[0]}] = {time[bad[0]]:g} must be finite and within "
+                            f"±{TIME_LIMIT:g} s")
+        if self.back is None and len(time):
+            steps = np.diff(time if self.last is None else np.concatenate([[self.last], time])) <= 0
+            if steps.any():
+                k = int(np.nonzero(steps)[0][0]) + first - (self.last is not None)
+                self.back = f"{self.source}: time must increase, but time[{k + 1}] <= time[{k}]"
+        if len(time):
+            self.last = time[-1]
+
+    def finish(self):
+        """The message of the problem found so far (None: none)."""
+        return self.bad or self.back
 
 
 def check_chain_range(qpos, model, geom_ids, source, field="qpos"):
@@ -377,19 +656,27 @@ class FrameChecker:
 
     Rigid and affine motions go through :class:`mjccd.scene.Scene` (moving
     spheres, cached and new separating planes, then the exact solver); the
-    chain motion builds each ellipsoid's :class:`mjccd.Chain` and solves every
-    pair with :func:`mjccd.first_contact`.
+    chain motion decides the pairs with :class:`mjccd.chain_bounds.ChainFilter`
+    (sweep spheres, separating planes of the swept bodies, the static overlap
+    test at the frame start) and solves the rest with :func:`mjccd.first_contact`
+    on each ellipsoid's :class:`mjccd.Chain`; ``chain_filters=False`` solves
+    every pair (the filters never change an answer: the tests compare both).
     """
 
-    def __init__(self, bounds, motion, model=None):
+    def __init__(self, bounds, motion, model=None, chain_filters=True):
         self.bounds = bounds
         self.motion = motion
         self.model = model
         self.counters = dict.fromkeys(COUNTER_NAMES, 0)
+        self.chain_filter = None
         if motion != "chain":
             from mjccd.scene import Scene
 
             self.scene = Scene(bounds.radii, pairs=bounds.pairs, motion=motion)
+        elif chain_filters:
+            from mjccd.chain_bounds import ChainFilter
+
+            self.chain_filter = ChainFilter(chain_program(model, bounds.geom_ids), bounds.radii, bounds.pairs)
         P = len(bounds.pairs)
         self._status = np.ones(P, dtype=np.int64)
         self._toi = np.full(P, -1.0)
@@ -422,9 +709,29 @@ class FrameChecker:
         from mjccd import Ellipsoid, first_contact
 
         radii = self.bounds.radii
-        motions = [chain_motion(self.model, g, qpos0, qpos1) for g in self.bounds.geom_ids]
-        self.counters["pairs"] += len(self.bounds.pairs)
-        for k, (i, j) in enumerate(self.bounds.pairs):
+        pairs = self.bounds.pairs
+        self.counters["pairs"] += len(pairs)
+        if self.chain_filter is None:
+            todo = range(len(pairs))
+        else:
+            from mjccd import chain_bounds as cb
+
+            outcome = self.chain_filter.step(qpos0, qpos1)
+            counts = self.chain_filter.counters
+            self.counters["sphere_culled"] += int(counts[cb.SPHERE])
+            self.counters["cached_plane"] += int(counts[cb.CACHED_PLANE])
+            self.counters["new_plane"] += int(counts[cb.NEW_PLANE])
+            overlap = np.flatnonzero(outcome == cb.OVERLAP_T0)  # as the rigid path: colliding at t = 0, no solve
+            self._status[overlap], self._toi[overlap] = -1, 0.0
+            self.counters["overlapping_t0"] += len(overlap)
+            self.counters["colliding"] += len(overlap)
+            todo = np.flatnonzero(outcome == cb.EXACT).tolist()
+        motions = {}  # built only for the ellipsoids of pairs left to the exact solver
+        for k in todo:
+            i, j = pairs[k]
+            for e in (i, j):
+                if e not in motions:
+                    motions[e] = chain_motion(self.model, self.bounds.geom_ids[e], qpos0, qpos1)
             self.counters["solved_exactly"] += 1
             c = first_contact(Ellipsoid(radii[i]), motions[i], Ellipsoid(radii[j]), motions[j])
             if c is None:
@@ -481,31 +788,91 @@ def chain_motion(model, geom_id, qpos0, qpos1):
     return Chain(elements)
 
 
+def chain_program(model, geom_ids):
+    """The chains of :func:`chain_motion` for ``geom_ids`` as one :class:`mjccd.chain_bounds.ChainProgram`.
+
+    The same elements in the same order, with the joint values read from qpos
+    (``adr`` = the joint's qpos address), for the chain-motion filters.
+    """
+    import mujoco
+
+    from mjccd import chain_bounds as cb
+    from mjccd.mujoco.motions import body_path
+
+    kinds = {int(mujoco.mjtJoint.mjJNT_BALL): cb.BALL, int(mujoco.mjtJoint.mjJNT_HINGE): cb.HINGE,
+             int(mujoco.mjtJoint.mjJNT_SLIDE): cb.SLIDE}
+    build = cb.ProgramBuilder()
+    for geom_id in geom_ids:
+        for b in reversed(body_path(model, model.geom_bodyid[geom_id])):
+            joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
+            if not any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in joints):
+                build.fixed(model.body_pos[b], model.body_quat[b])
+            for j in joints:
+                a = int(model.jnt_qposadr[j])
+                if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+                    build.joint(cb.FREE, a)
+                    continue
+                anchor = model.jnt_pos[j]
+                shifted = bool(np.any(anchor != 0.0))
+                if shifted:
+                    build.fixed(anchor)
+                build.joint(kinds[int(model.jnt_type[j])], a, model.jnt_axis[j])
+                if shifted:
+                    build.fixed(-anchor)
+        build.fixed(model.geom_pos[geom_id], model.geom_quat[geom_id])
+        build.end()
+    return build.program()
+
+
 # ---------------------------------------------------------------- replay
 
 
 @dataclass
 class ReplayResult:
-    """Everything a replay found; ``contacts`` are first contacts, ``in_contact`` (T-1, P) flags."""
+    """Everything a replay found.
+
+    ``contacts`` are the first contacts (dicts, as in ``contacts.json``).  ``overlaps`` maps a
+    pair (an index into ``bounds.pairs``) to its runs of frame intervals in contact (or
+    possibly in contact: an uncertain result), each ``(first, last, time[first],
+    time[last + 1])``, in order; ``frames_in_contact`` counts the frame intervals with any pair
+    in contact; ``time_range`` is the times of the first and the last frame.
+
+    Nothing per frame is kept: ``time`` (T,) and ``in_contact`` ((T - 1, P) flags, made from
+    ``overlaps``) are built on first use and kept from then on; ``time`` is read again from the
+    trajectory file.
+    """
 
     model: str
     trajectory: str
     motion: str
-    time: np.ndarray
+    n_frames: int
     bounds: Bounds
     contacts: list = field(default_factory=list)
-    in_contact: np.ndarray = None
+    overlaps: dict = field(default_factory=dict)
+    frames_in_contact: int = 0
+    time_range: tuple = (0.0, 0.0)
     counters: dict = field(default_factory=dict)
     timing: dict = field(default_factory=dict)
     files: list = field(default_factory=list)
+    source: Trajectory = field(default=None, repr=False, compare=False)  # where ``time`` is read from
 
-    @property
-    def n_frames(self):
-        return len(self.time)
+    @cached_property
+    def time(self):
+        """The (T,) frame times, read from the trajectory on first use."""
+        return self.source.times()
+
+    @cached_property
+    def in_contact(self):
+        """(T - 1, P) flags: pair p in contact during frame interval k (T - 1 by P bytes, made on first use)."""
+        flags = np.zeros((self.n_frames - 1, len(self.bounds.pairs)), dtype=bool)
+        for p, runs in self.overlaps.items():
+            for first, last, _, _ in runs:
+                flags[first:last + 1, p] = True
+        return flags
 
 
 def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progress=True, render=True,
-           max_rendered=4, force=False, chunk_frames=None):
+           max_rendered=4, force=False, chunk_frames=None, read_frames=None):
     """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
 
     Args:
@@ -517,6 +884,8 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
         pairs: (P, 2) ellipsoid index pairs to check instead of the default.
         chunk_frames: frame intervals per chunk of compiled work (Ctrl-C is acted on between chunks);
             None: the motion's :data:`CHUNK_FRAMES`.  The results do not depend on it.
+        read_frames: frames read from the trajectory file at a time (None: :data:`READ_FRAMES`); the
+            results do not depend on it either.
     Returns:
         a :class:`ReplayResult`.
     """
@@ -525,20 +894,24 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
     chunk_frames = CHUNK_FRAMES[motion] if chunk_frames is None else chunk_frames
     if not (isinstance(chunk_frames, (int, np.integer)) and chunk_frames >= 1):
         raise ReplayError(f"chunk_frames: expected a positive integer, got {chunk_frames!r}")
+    read_frames = READ_FRAMES if read_frames is None else read_frames
+    if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):  # before the model is loaded
+        raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
     model = load_model(model_path)
     bounds = bounding_ellipsoids(model, pairs, source=str(model_path))
-    qpos, time = load_trajectory(traj, model)
-    if motion == "chain":
-        check_chain_range(qpos, model, bounds.geom_ids, traj)
+    trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
+    if motion == "chain":  # the chain motion's check takes the whole qpos (chain replays are short)
+        check_chain_range(trajectory.qpos(), model, bounds.geom_ids, traj)
     folder = None if out_dir is None else output_folder(out_dir, force)
-    result = ReplayResult(str(model_path), str(traj), motion, time, bounds)
-    _run(model, qpos, bounds, motion, result, progress, chunk_frames)
+    result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, bounds, source=trajectory)
+    rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
+    _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rendered, max_rendered)
     if folder is not None:
         try:
             with folder:
                 write_reports(result, folder)
                 if render:
-                    render_frames(model, qpos, result, folder, max_rendered)
+                    render_frames(model, rendered, result, folder, max_rendered)
         except OutputError:
             raise
         except OSError as exc:
@@ -563,18 +936,22 @@ def output_folder(out_dir, force=False):
     return folder
 
 
-def _run(model, qpos, bounds, motion, result, progress, chunk_frames):
-    """Kinematics and the per-frame checks, chunk by chunk of frames; fills ``result``.
+def _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rendered=None, max_rendered=0):
+    """Kinematics and the per-frame checks, chunk by chunk of frames read from ``trajectory``; fills ``result``.
 
     The chunks run inside :func:`mjccd.interrupts.deferred`: a Ctrl-C raises
     KeyboardInterrupt between two chunks, never inside compiled code.  The
     frame checker (and its plane cache) carries over from chunk to chunk, so
-    the results do not depend on ``chunk_frames``.
+    the results do not depend on ``chunk_frames`` (nor on how many frames the
+    trajectory reads at a time).  ``rendered`` (a dict) receives the qpos rows,
+    by frame, of both ends of the first ``max_rendered`` intervals with a first
+    contact: what :func:`render_frames` draws.
     """
     warm_up(motion)  # the first compile (or cache load) is not part of the timing
     checker = FrameChecker(bounds, motion, model)
-    n = len(result.time) - 1
-    in_contact = np.zeros((n, len(bounds.pairs)), dtype=bool)
+    n = trajectory.n_frames - 1
+    overlaps = _Overlaps(len(bounds.pairs))
+    t_first = t_last = None
     t_kin = t_ccd = 0.0
     bar = None
     if progress:
@@ -582,18 +959,24 @@ def _run(model, qpos, bounds, motion, result, progress, chunk_frames):
 
         bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False)
     try:
-        with interrupts.deferred() as check:
-            for first in range(0, n, chunk_frames):
-                stop = min(first + chunk_frames, n)
+        with interrupts.deferred() as check, closing(_windows(trajectory, chunk_frames)) as windows:
+            for first, qpos, time in windows:  # frames first .. stop
+                stop = first + len(qpos) - 1
+                t_first = time[0] if t_first is None else t_first
+                t_last = time[-1]
                 start = _time.perf_counter()
-                pos, quat = geom_poses(model, qpos[first:stop + 1], bounds.geom_ids)
+                pos, quat = geom_poses(model, qpos, bounds.geom_ids)
                 _check_centres(pos, first, bounds, result)
                 t_kin += _time.perf_counter() - start
                 start = _time.perf_counter()
-                for k in range(first, stop):
-                    i = k - first
-                    fc = checker.step(pos[i], quat[i], pos[i + 1], quat[i + 1], qpos[k], qpos[k + 1])
-                    _record(result, k, fc, in_contact)
+                flags = np.empty((stop - first, len(bounds.pairs)), dtype=bool)
+                for i in range(stop - first):
+                    fc = checker.step(pos[i], quat[i], pos[i + 1], quat[i + 1], qpos[i], qpos[i + 1])
+                    found = len(result.contacts)
+                    _record(result, first + i, fc, time[i], time[i + 1], flags[i])
+                    if rendered is not None and len(result.contacts) > found and len(rendered) < 2 * max_rendered:
+                        rendered[first + i], rendered[first + i + 1] = qpos[i].copy(), qpos[i + 1].copy()
+                overlaps.add(first, flags, time)
                 t_ccd += _time.perf_counter() - start
                 if bar is not None:
                     bar.update(stop - first)
@@ -601,7 +984,9 @@ def _run(model, qpos, bounds, motion, result, progress, chunk_frames):
     finally:
         if bar is not None:
             bar.close()
-    result.in_contact = in_contact
+    overlaps.close(n, t_last)
+    result.overlaps, result.frames_in_contact = overlaps.runs, overlaps.frames
+    result.time_range = (float(t_first), float(t_last))
     result.counters = {name: int(v) for name, v in checker.counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
                      "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
@@ -616,15 +1001,70 @@ def _check_centres(pos, first, bounds, result):
                           f"is at {pos[k, i].tolist()}, beyond ±{COORDINATE_LIMIT:g} m")
 
 
-def _record(result, k, fc, in_contact):
-    """Add frame k's first contacts to ``result`` and its contact flags to ``in_contact``."""
+def _windows(trajectory, size):
+    """``(first, qpos, time)`` of frames ``first`` to ``first + size`` (fewer at the end), from the trajectory's reads.
+
+    Consecutive windows share a frame: the interval from one to the next is in exactly one window.
+    """
+    qs, ts, have, first = [], [], 0, 0
+    with closing(trajectory.chunks()) as chunks:
+        for _, qpos, time in chunks:
+            qs.append(qpos)
+            ts.append(time)
+            have += len(qpos)
+            if have < size + 1:
+                continue
+            q, t = (np.concatenate(qs), np.concatenate(ts)) if len(qs) > 1 else (qs[0], ts[0])
+            start = 0
+            while len(q) - start >= size + 1:
+                yield first, q[start:start + size + 1], t[start:start + size + 1]
+                start += size
+                first += size
+            qs, ts, have = [q[start:]], [t[start:]], len(q) - start
+    if have >= 2:
+        yield first, np.concatenate(qs), np.concatenate(ts)
+
+
+class _Overlaps:
+    """The runs of frame intervals each pair spends in contact, from (intervals, pairs) flags a chunk at a time."""
+
+    def __init__(self, pairs):
+        self.start = np.full(pairs, -1, dtype=np.int64)  # first interval of each pair's open run (-1: none)
+        self.start_time = np.zeros(pairs)
+        self.runs = {}     # pair -> [(first, last, time[first], time[last + 1])]
+        self.frames = 0    # intervals with any pair in contact
+
+    def add(self, first, flags, time):
+        """``flags`` (m, P) of intervals ``first`` to ``first + m - 1``; ``time`` (m + 1,) of their end frames."""
+        if len(flags) == 0:
+            return
+        self.frames += int(np.count_nonzero(flags.any(axis=1)))
+        before = np.concatenate([(self.start >= 0)[None], flags[:-1]])
+        for r, p in zip(*(idx.tolist() for idx in np.nonzero(flags != before))):
+            if flags[r, p]:
+                self.start[p], self.start_time[p] = first + r, time[r]
+            else:
+                self.runs.setdefault(p, []).append((int(self.start[p]), first + r - 1, float(self.start_time[p]),
+                                                    float(time[r])))
+                self.start[p] = -1
+
+    def close(self, intervals, last_time):
+        """End the open runs after the last interval (``intervals`` of them; ``last_time``: the last frame's)."""
+        for p in np.nonzero(self.start >= 0)[0].tolist():
+            self.runs.setdefault(p, []).append((int(self.start[p]), intervals - 1, float(self.start_time[p]),
+                                                float(last_time)))
+            self.start[p] = -1
+
+
+def _record(result, k, fc, t0, t1, flags):
+    """Add the first contacts of interval k (frame times ``t0`` to ``t1``) to ``result``, its contact flags to ``flags``."""
     bounds = result.bounds
-    in_contact[k] = (fc.status != 1) | (fc.toi >= 0.0)
-    dt = result.time[k + 1] - result.time[k]
+    flags[:] = (fc.status != 1) | (fc.toi >= 0.0)
+    dt = t1 - t0
     for p in np.nonzero((fc.status == 1) & (fc.toi >= 0.0))[0]:
         i, j = bounds.pairs[p]
         result.contacts.append({
-            "frame": int(k), "toi": float(fc.toi[p]), "time": float(result.time[k] + fc.toi[p] * dt),
+            "frame": int(k), "toi": float(fc.toi[p]), "time": float(t0 + fc.toi[p] * dt),
             "ellipsoids": [bounds.names[i], bounds.names[j]],
             "bodies": [bounds.body_names[i], bounds.body_names[j]],
             "labels": [bounds.labels[i], bounds.labels[j]],
@@ -633,7 +1073,16 @@ def _record(result, k, fc, in_contact):
 
 def warm_up(motion="rigid"):
     """Compile (or load from the cache) the per-frame kernels before timing a replay."""
-    if motion == "chain":
+    if motion == "chain":  # the chain filters and one exact chain solve (a contact)
+        from mjccd import Ball, Chain, Ellipsoid, Fixed, Hinge, first_contact
+        from mjccd.chain_bounds import ChainFilter, program_from_elements
+
+        chains = [Chain([Hinge((0.0, 0.0, 1.0), 0.0, 0.5), Fixed((2.0, 0.0, 0.0))]),
+                  Chain([Fixed((1.5, 1.5, 0.0)), Ball((1.0, 0.0, 0.0, 0.0), (0.9, 0.3, 0.0, 0.0)),
+                         Fixed((0.0, -0.5, 0.0))])]
+        program, q0, q1 = program_from_elements(chains)
+        ChainFilter(program, [[0.5, 0.3, 0.3]] * 2, [[0, 1]]).step(q0, q1)
+        first_contact(Ellipsoid([0.5, 0.3, 0.3]), chains[0], Ellipsoid([0.5, 0.3, 0.3]), chains[1])
         return
     from mjccd.scene import Scene
 
@@ -710,8 +1159,8 @@ def summary(result):
     """A few lines: frames, pairs, contacts, filter counters, timing."""
     c = result.counters
     t = result.timing
-    frames_hit = int(result.in_contact.any(axis=1).sum()) if result.in_contact is not None else 0
-    pairs_hit = int(result.in_contact.any(axis=0).sum()) if result.in_contact is not None else 0
+    frames_hit = result.frames_in_contact
+    pairs_hit = len(result.overlaps)
     lines = [
         f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.bounds.names)} ellipsoids, "
         f"{len(result.bounds.pairs)} pairs, motion {result.motion}",
@@ -725,16 +1174,14 @@ def summary(result):
 
 
 def _overlap_spans(result):
+    """The ``in_contact`` entries of contacts.json: each pair ever in contact, in pair order, and its frame runs."""
     spans = []
-    for p in np.nonzero(result.in_contact.any(axis=0))[0]:
-        col = result.in_contact[:, p].astype(np.int8)
-        edges = np.diff(np.concatenate([[0], col, [0]]))
-        starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    for p in sorted(result.overlaps):
         i, j = result.bounds.pairs[p]
         spans.append({"ellipsoids": [result.bounds.names[i], result.bounds.names[j]],
                       "bodies": [result.bounds.body_names[i], result.bounds.body_names[j]],
                       "labels": [result.bounds.labels[i], result.bounds.labels[j]],
-                      "frames": [[int(a), int(b) - 1] for a, b in zip(starts, ends)]})
+                      "frames": [[a, b] for a, b, _, _ in result.overlaps[p]]})
     return spans
 
 
@@ -745,7 +1192,8 @@ def write_reports(result, folder):
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
     with folder.open("contacts.json", "w", encoding="utf-8") as fh:
-        fh.write(json.dumps(doc, indent=1) + "\n")
+        json.dump(doc, fh, indent=1)  # written piece by piece: the text of json.dumps(doc, indent=1)
+        fh.write("\n")
     with folder.open("contacts.csv", "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(["frame", "time", "toi", "ellipsoid_a", "ellipsoid_b", "body_a", "body_b",
@@ -767,15 +1215,18 @@ def plot_timeline(result, target):
     spans = _overlap_spans(result)
     labels = [f"{s['labels'][0]} / {s['labels'][1]}" for s in spans]
     fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(spans) + 1.2)))
-    t = result.time
-    for row, s in enumerate(spans):
-        ax.broken_barh([(t[a], t[b + 1] - t[a]) for a, b in s["frames"]], (row - 0.35, 0.7),
-                       facecolors="tab:blue", alpha=0.5)
-        hits = [c["time"] for c in result.contacts if c["ellipsoids"] == s["ellipsoids"]]
+    t0, t1 = result.time_range
+    hits_of = {}
+    for c in result.contacts:
+        hits_of.setdefault(tuple(c["ellipsoids"]), []).append(c["time"])
+    for row, (p, s) in enumerate(zip(sorted(result.overlaps), spans)):
+        bars = _thin_runs([(a, b) for _, _, a, b in result.overlaps[p]], (t1 - t0) / PLOT_BARS)
+        ax.broken_barh([(a, b - a) for a, b in bars], (row - 0.35, 0.7), facecolors="tab:blue", alpha=0.5)
+        hits = _thin_times(hits_of.get(tuple(s["ellipsoids"]), []), (t1 - t0) / PLOT_BARS)
         ax.plot(hits, [row] * len(hits), "o", color="tab:red", ms=4)
     ax.set_yticks(range(len(spans)))
     ax.set_yticklabels(labels, fontsize=7)
-    ax.set_xlim(t[0], t[-1])
+    ax.set_xlim(t0, t1)
     ax.set_ylim(-1, max(len(spans), 1))
     ax.set_xlabel("time [s]")
     ax.set_title(f"{pathlib.Path(result.model).name}: contacts ({result.motion} motion); red dots: first contacts")
@@ -786,8 +1237,35 @@ def plot_timeline(result, target):
         plt.close(fig)
 
 
+def _thin_runs(runs, gap):
+    """Time runs ``(start, end)`` in order; beyond :data:`PLOT_BARS` of them, those less than ``gap`` apart are joined."""
+    if len(runs) <= PLOT_BARS:
+        return runs
+    joined = [runs[0]]
+    for a, b in runs[1:]:
+        if a - joined[-1][1] < gap:
+            joined[-1] = (joined[-1][0], max(b, joined[-1][1]))
+        else:
+            joined.append((a, b))
+    return joined
+
+
+def _thin_times(times, gap):
+    """Times in order; beyond :data:`PLOT_BARS` of them, only those at least ``gap`` after the last one kept."""
+    if len(times) <= PLOT_BARS:
+        return times
+    kept = [times[0]]
+    for x in times[1:]:
+        if x - kept[-1] >= gap:
+            kept.append(x)
+    return kept
+
+
 def render_frames(model, qpos, result, folder, count=4):
-    """PNG frames at the first few first contacts in ``folder``, colliding ellipsoids in red; none without OpenGL."""
+    """PNG frames at the first few first contacts in ``folder``, colliding ellipsoids in red; none without OpenGL.
+
+    ``qpos``: the (T, nq) trajectory, or a dict of the rows needed by frame (what :func:`replay` keeps).
+    """
     if not result.contacts or count <= 0:
         return
     if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):

@@ -8,6 +8,7 @@ behind.  Every count but the first should be 0.
 """
 import argparse
 import os
+import pathlib
 import sys
 import tempfile
 
@@ -23,7 +24,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     rows = []
     for name, module in fuzz_inputs.available():
-        with tempfile.TemporaryDirectory() as folder:
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = pathlib.Path(tmp)
             cases = module.generate(folder, np.random.default_rng(args.seed))
             counts = {"traceback": 0, "exit 0": 0, "message names": 0, "left files": 0}
             for case in cases:

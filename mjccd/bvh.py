@@ -22,10 +22,13 @@ import re
 import sys
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
 from mjccd import files
 from mjccd.errors import InputError, MjccdError
+from mjccd.fitting import ball, fit_atoms
+from mjccd.quadric import matrix_to_quat, quat_to_matrix
 
 # CMU ASF length unit: 1/0.45 inch (about 0.0564 m).
 CMU_SCALE = 0.0254 / 0.45
@@ -500,30 +503,6 @@ def _limb_capsules(clip, index, scale):
             if np.linalg.norm(e) * scale >= 1e-6]
 
 
-def _quat_matrix(q):
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _matrix_quat(R):
-    """Unit quaternion [w, x, y, z] of a rotation matrix."""
-    m = R
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    cands = [(1 + tr, lambda s: [s / 4, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]),
-             (1 + m[0, 0] - m[1, 1] - m[2, 2], lambda s: [(m[2, 1] - m[1, 2]) / s, s / 4, (m[0, 1] + m[1, 0]) / s,
-                                                         (m[0, 2] + m[2, 0]) / s]),
-             (1 - m[0, 0] + m[1, 1] - m[2, 2], lambda s: [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, s / 4,
-                                                         (m[1, 2] + m[2, 1]) / s]),
-             (1 - m[0, 0] - m[1, 1] + m[2, 2], lambda s: [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s,
-                                                         (m[1, 2] + m[2, 1]) / s, s / 4])]
-    val, f = max(cands, key=lambda c: c[0])
-    q = np.array(f(2.0 * math.sqrt(val)))
-    q = q if q[0] >= 0 else -q
-    return q / np.linalg.norm(q)
-
-
 def rigid_groups(clip, layout):
     """Capsules of each rigidly moving part: ``{joint index: [(p0, p1, r), ...]}`` in that joint's frame.
 
@@ -546,83 +525,24 @@ def rigid_groups(clip, layout):
                 continue
             shift, q = _joint_motion(clip, c, ref)
             pc = p + R @ (layout.scale * (clip.joints[c].offset + shift[0]))
-            walk(c, owner, R @ _quat_matrix(q[0]), pc)
+            walk(c, owner, R @ quat_to_matrix(q[0]), pc)
 
     walk(0, 0, np.eye(3), np.zeros(3))
     return {k: v for k, v in groups.items() if v}
 
 
-def _ball_bound(v, r, q):
-    """Upper bound of max over |d| <= r of sum q (v + d)^2, for each row of v (n, 3).
-
-    Weak duality of the trust-region problem: every mu > max(q) gives
-    ``g(mu) = sum q v^2 mu / (mu - q) + mu r^2``, an upper bound, and the
-    smallest one equals the maximum.  A golden-section search on the convex g
-    gets close to it; the value returned is always a valid bound.
-    """
-    qmax = q.max()
-    lo = np.full(v.shape[0], np.log(1e-12 * qmax))
-    hi = np.full(v.shape[0], np.log(1e6 * qmax + np.sqrt((q * q * v * v).sum(axis=1)) / r.min()))
-
-    def g(x):
-        mu = qmax + np.exp(x)
-        return (q * v * v * (mu[:, None] / (mu[:, None] - q))).sum(axis=1) + mu * r * r
-
-    phi = (math.sqrt(5) - 1) / 2
-    for _ in range(80):
-        a = hi - phi * (hi - lo)
-        b = lo + phi * (hi - lo)
-        left = g(a) < g(b)
-        hi = np.where(left, b, hi)
-        lo = np.where(left, lo, a)
-    return np.minimum(g(lo), g(hi))
-
-
 def fit_capsules(capsules):
-    """A bounding ellipsoid ``(radii, centre, quaternion)`` that contains every capsule.
+    """A bounding ellipsoid ``(radii, centre, quaternion)`` that contains every capsule ``(p0, p1, radius)``.
 
-    Containment is guaranteed: an ellipsoid is convex, so it contains a capsule
-    when it contains both end balls, and each ball's worst point is bounded
-    exactly (see :func:`_ball_bound`).  The axes come from the principal
-    directions of the capsules; their lengths are searched for least volume.
+    A capsule is the convex hull of its two end balls, so the ellipsoid of
+    :func:`mjccd.fitting.fit_atoms` (containment proven) bounds it.  A
+    skeleton is fitted once, offline: with a tolerance ten times finer than
+    the default.  The radii get a margin of 1e-9 for the 12 digits the MJCF
+    is written with.
     """
-    centres = np.array([c for a, b, _ in capsules for c in (a, b)], float)
-    r = np.array([rad for _, _, rad in capsules for _ in (0, 1)], float)
-    pts = np.concatenate([np.array([a + (b - a) * s for a, b, _ in capsules for s in np.linspace(0, 1, 9)])])
-    spread = pts - pts.mean(axis=0)
-    _, vecs = np.linalg.eigh(spread.T @ spread + 1e-12 * np.eye(3))
-    R = vecs[:, ::-1]
-    if np.linalg.det(R) < 0:
-        R[:, 2] = -R[:, 2]
-    local = centres @ R
-    mid = 0.5 * ((local - r[:, None]).min(axis=0) + (local + r[:, None]).max(axis=0))
-    v = local - mid
-    half = np.abs(v).max(axis=0) + r.max()
-
-    def fitted(logs):
-        axes = half * np.exp(logs)
-        s = math.sqrt(_ball_bound(v, r, 1.0 / axes ** 2).max())
-        return axes * s
-
-    def volume(logs):
-        return float(np.prod(fitted(logs)))
-
-    logs = np.zeros(3)
-    best = volume(logs)
-    step = 0.4
-    while step > 2e-3:
-        improved = False
-        for k in range(3):
-            for sign in (1.0, -1.0):
-                trial = logs.copy()
-                trial[k] += sign * step
-                val = volume(trial)
-                if val < best:
-                    logs, best, improved = trial, val, True
-        if not improved:
-            step /= 2
-    radii = fitted(logs) * (1.0 + 1e-9)
-    return radii, R @ mid, _matrix_quat(R)
+    atoms = [ball(p, r) for p0, p1, r in capsules for p in (p0, p1)]
+    centre, rotation, radii = fit_atoms(atoms, tolerance=1e-5)
+    return radii * (1.0 + 1e-9), centre, matrix_to_quat(rotation)
 
 
 def bounding_geoms(clip, layout):
@@ -719,8 +639,6 @@ def check_model(xml, qpos, source):
     ``Hips_root`` beside the root's free joint); compiling is the one
     complete check.
     """
-    import mujoco
-
     try:
         model = mujoco.MjModel.from_xml_string(xml)
     except ValueError as exc:

@@ -8,6 +8,7 @@ import os
 
 import pytest
 
+from mjccd.mujoco.ellipsoids import fit_model
 from mjccd.testing import load_model, load_trajectory
 
 
@@ -46,8 +47,6 @@ def mjccd_trajectory(request, mjccd_model):
 def mjccd_ellipsoids(_mjccd_cache):
     """``fit(model, per="body") -> EllipsoidSet``, fitted once per model and mode."""
     def fit(model, per="body"):
-        from mjccd.fit import fit_model
-
         key = ("fit", id(model), per)
         if key not in _mjccd_cache:
             _mjccd_cache[key] = (model, fit_model(model, per=per))

@@ -68,6 +68,30 @@ def quat_to_matrix(q):
     return R
 
 
+def matrix_to_quat(R):
+    """Unit quaternions [w, x, y, z] (..., 4), w >= 0, of rotation matrices (..., 3, 3).
+
+    The inverse of :func:`quat_to_matrix`, by Shepperd's method: branching on
+    the largest of ``1 + trace`` and ``1 + 2 R_ii - trace`` divides by the
+    largest quaternion component, so no rotation loses precision (the trace
+    alone fails near half turns).
+    """
+    R = np.asarray(R, dtype=float)
+    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    cand = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
+    best = cand.argmax(axis=-1)
+    s = 2.0 * np.sqrt(np.maximum(np.take_along_axis(cand, best[..., None], -1)[..., 0], 1e-300))
+    d21, d02, d10 = R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]
+    s01, s02, s12 = R[..., 0, 1] + R[..., 1, 0], R[..., 0, 2] + R[..., 2, 0], R[..., 1, 2] + R[..., 2, 1]
+    branch = [best == 0, best == 1, best == 2]
+    q = np.stack([np.select(branch, [s / 4, d21 / s, d02 / s], d10 / s),
+                  np.select(branch, [d21 / s, s / 4, s01 / s], s02 / s),
+                  np.select(branch, [d02 / s, s01 / s, s / 4], s12 / s),
+                  np.select(branch, [d10 / s, s02 / s, s12 / s], s / 4)], -1)
+    q *= np.where(q[..., :1] < 0, -1.0, 1.0)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
 @_jit
 def quadric_matrix(radii, position, quaternion):
     """World 4x4 matrix ``M^-T diag(1/a^2, 1/b^2, 1/c^2, -1) M^-1`` of a posed ellipsoid."""

@@ -1,13 +1,17 @@
-"""Bounding-ellipsoid fit: containment of every geometry point, closed forms, files, MJCF output."""
+"""Bounding ellipsoids of a MuJoCo model: containment of every geom point, closed forms, files, MJCF output.
+
+The fitting maths on its own is tested in ``test_fitting.py``.
+"""
 import json
 
 import mujoco
 import numpy as np
 import pytest
 
-from mjccd.fit import (_ball_max_bound, containment_factor, fit_model, main, mvee, volume_report,
-                       write_mjcf)
+from mjccd.fit import main, volume_report, write_mjcf
+from mjccd.fitting import containment_factor
 from mjccd.mujoco import EllipsoidSet, load_ellipsoids
+from mjccd.mujoco.ellipsoids import fit_model, geom_shape
 
 SHAPES = """
 <mujoco>
@@ -130,49 +134,14 @@ def test_box_fits_to_circumscribed_ellipsoid(model, fitted):
     assert fitted.volume_ratios[_row(fitted, "cube")] == pytest.approx(np.pi * np.sqrt(3) / 2, rel=1e-12)
 
 
-def test_general_fit_matches_closed_form_for_a_box(model):
-    """Khachiyan on box corners converges to the same circumscribed ellipsoid."""
-    corners = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], float) * [0.3, 0.1, 0.05]
-    c, R, r = mvee(corners, tolerance=1e-9)
-    np.testing.assert_allclose(np.sort(r), np.sort(np.sqrt(3) * np.array([0.3, 0.1, 0.05])), rtol=1e-6)
-    np.testing.assert_allclose(c, 0.0, atol=1e-9)
-
-
-def test_cylinder_closed_form_is_minimal_among_axis_aligned():
-    """r sqrt(3/2), h sqrt(3): any other (R, H) with the rim inside has more volume."""
-    r, h = 0.1, 0.25
-    best = (r * np.sqrt(1.5)) ** 2 * h * np.sqrt(3)
-    for b in np.linspace(0.05, 0.95, 19):  # b = h^2 / H^2, a = 1 - b on the rim
-        assert (r ** 2 / (1 - b)) * (h / np.sqrt(b)) >= best * (1 - 1e-12)
-
-
 def test_containment_check_can_fail(model, fitted):
     """The check is not vacuous: a 1% smaller ellipsoid is reported as not containing."""
-    from mjccd.fit import geom_atoms
-
     b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pill")
-    atoms, _ = geom_atoms(model, model.body_geomadr[b])
+    atoms = geom_shape(model, model.body_geomadr[b]).atoms()
     k = _row(fitted, "pill")
     R = _quat_mat(fitted.quaternions[k])
     assert containment_factor(fitted.positions[k], R, fitted.radii[k], atoms) <= 1.0 + 1e-12
     assert containment_factor(fitted.positions[k], R, 0.99 * fitted.radii[k], atoms) > 1.005
-
-
-def test_trust_region_bound_is_tight_and_above_every_sample():
-    rng = np.random.default_rng(3)
-    u = rng.normal(size=(20000, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    for trial in range(40):
-        a = rng.normal(size=3)
-        B = rng.normal(size=(3, 3))
-        if trial % 3 == 0:
-            B[:, 2] = 0.0  # flat atom (a disk)
-        if trial % 5 == 0:
-            a = np.zeros(3)  # the hard case of the trust-region problem
-        sampled = np.max(np.sum((a + u @ B.T) ** 2, axis=1))
-        bound = _ball_max_bound(a, B)
-        assert sampled <= bound + 1e-12
-        assert bound <= sampled * 1.01
 
 
 def test_volume_report_lists_every_body(fitted):

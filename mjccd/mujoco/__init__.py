@@ -1,5 +1,5 @@
 """MuJoCo integration: fitted ellipsoids on bodies, exact motions between steps, the step monitor, guarded stepping."""
-from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, load_ellipsoids
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model, load_ellipsoids
 from mjccd.mujoco.monitor import (CCDMonitor, StepContact, StepReport, default_pairs, excluded_body_pairs,
                                   pairs_from_bodies)
 from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, capture, interpolate_qpos,
@@ -8,6 +8,6 @@ from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, GuardReport, geom
 
 __all__ = [
     "CCDMonitor", "EllipsoidSet", "GuardReport", "GuardedStepper", "GuardedWrapper", "Kinematics", "MOTIONS",
-    "State", "StepContact", "StepReport", "body_label", "capture", "default_pairs", "excluded_body_pairs",
+    "State", "StepContact", "StepReport", "body_label", "capture", "default_pairs", "excluded_body_pairs", "fit_model",
     "geom_ellipsoids", "interpolate_qpos", "load_ellipsoids", "motions_between", "pairs_from_bodies",
 ]

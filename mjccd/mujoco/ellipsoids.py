@@ -1,15 +1,30 @@
-"""Bounding ellipsoids attached to MuJoCo bodies: the set, its files, and its binding to a model."""
+"""Bounding ellipsoids of MuJoCo bodies: fitted to a model's geoms, the set and its files, its binding to a model.
+
+The fitting maths is :mod:`mjccd.fitting`; this module reads the geoms of a
+``mujoco.MjModel`` into its shapes and labels the result by body.
+"""
 import json
 import os
 import zipfile
 from dataclasses import dataclass, field
 
+import mujoco
 import numpy as np
 
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
+from mjccd.fitting import Shape, fit_shapes
+from mjccd.quadric import matrix_to_quat, quat_to_matrix
 
 FORMAT_VERSION = 1
+SUPPORTED = {
+    mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
+    mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
+    mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid",
+    mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
+    mujoco.mjtGeom.mjGEOM_BOX: "box",
+    mujoco.mjtGeom.mjGEOM_MESH: "mesh",
+}
 
 
 @dataclass(frozen=True)
@@ -60,8 +75,6 @@ class EllipsoidSet:
 
     def body_ids(self, model):
         """(N,) MuJoCo body ids of the ellipsoids; InputError naming any body the model lacks (and its bodies)."""
-        import mujoco
-
         ids = np.empty(len(self), dtype=np.int64)
         for k, name in enumerate(self.bodies):
             if name.startswith("#") and name[1:].isdigit():
@@ -169,8 +182,6 @@ def _file_name(path):
 
 def body_label(model, body_id):
     """A body's name, or ``#id`` for an unnamed body (how :class:`EllipsoidSet` refers to it)."""
-    import mujoco
-
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(body_id))
     return name if name else f"#{int(body_id)}"
 
@@ -178,3 +189,102 @@ def body_label(model, body_id):
 def load_ellipsoids(path):
     """Load an :class:`EllipsoidSet` from a ``.json`` or ``.npz`` file."""
     return EllipsoidSet.load(path)
+
+
+# ---------------------------------------------------------------- fitting a model
+
+
+def geom_shape(model, geom_id):
+    """The :class:`~mjccd.fitting.Shape` of a supported geom, in its body's frame."""
+    gtype = int(model.geom_type[geom_id])
+    if gtype not in SUPPORTED:
+        raise ValueError(f"geom {geom_id}: type {gtype} is not supported")
+    position, rotation = model.geom_pos[geom_id].copy(), quat_to_matrix(model.geom_quat[geom_id].copy())
+    if gtype != mujoco.mjtGeom.mjGEOM_MESH:
+        return Shape(SUPPORTED[gtype], model.geom_size[geom_id].copy(), position, rotation)
+    mesh = int(model.geom_dataid[geom_id])
+    vert, face = model.mesh_vertadr[mesh], model.mesh_faceadr[mesh]
+    return Shape("mesh", model.geom_size[geom_id].copy(), position, rotation,
+                 vertices=model.mesh_vert[vert:vert + model.mesh_vertnum[mesh]].astype(float),
+                 faces=model.mesh_face[face:face + model.mesh_facenum[mesh]])
+
+
+def collision_geoms(model, body_id, *, include_visual=False):
+    """Geom ids of a body that take part in collisions (all geoms with ``include_visual``)."""
+    start, num = model.body_geomadr[body_id], model.body_geomnum[body_id]
+    ids = range(start, start + num) if start >= 0 else range(0)
+    return [g for g in ids if include_visual or (model.geom_contype[g] | model.geom_conaffinity[g])]
+
+
+def fit_model(model, *, per="body", bodies=None, include_visual=False):
+    """Bounding ellipsoids of a compiled model as an :class:`EllipsoidSet`.
+
+    Args:
+        model: ``mujoco.MjModel``.
+        per: "body" (one ellipsoid per body) or "geom" (one per geom).
+        bodies: body names or ids to fit; default every body with supported collision geometry.
+        include_visual: also bound geoms with ``contype = conaffinity = 0``.
+
+    Planes, height fields and SDF geoms are unbounded or implicit: they are
+    skipped (and a body that has nothing else is left out).  ``volume_ratios``
+    compare with the sum of the geoms' volumes (overlaps counted twice).
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if per not in ("body", "geom"):
+        raise ValueError(f"per: expected 'body' or 'geom', got {per!r}")
+    explicit = bodies is not None
+    body_ids = _resolve_bodies(model, bodies) if explicit else range(model.nbody)
+    out = {"bodies": [], "geoms": [], "radii": [], "positions": [], "quaternions": [], "volume_ratios": []}
+
+    def emit(body_id, geom_name, shapes):
+        c, R, r = fit_shapes(shapes)
+        volume = sum(shape.volume() for shape in shapes)
+        out["bodies"].append(body_label(model, body_id))
+        out["geoms"].append(geom_name)
+        out["radii"].append(r)
+        out["positions"].append(c)
+        out["quaternions"].append(matrix_to_quat(R))
+        out["volume_ratios"].append(4.0 / 3.0 * np.pi * np.prod(r) / volume if volume > 0 else np.nan)
+
+    for b in body_ids:
+        geoms = collision_geoms(model, b, include_visual=include_visual)
+        label = body_label(model, b)
+        if not geoms:
+            if explicit:
+                raise ValueError(f"bodies: body {label!r} has no collision geometry")
+            continue
+        usable = [g for g in geoms if int(model.geom_type[g]) in SUPPORTED]
+        if not usable:
+            if explicit:
+                kinds = sorted({mujoco.mjtGeom(int(model.geom_type[g])).name for g in geoms})
+                raise ValueError(f"bodies: body {label!r} has only unsupported geoms ({', '.join(kinds)})")
+            continue
+        if per == "geom":
+            for g in usable:
+                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
+                emit(b, name, [geom_shape(model, g)])
+        else:
+            try:
+                emit(b, "", [geom_shape(model, g) for g in usable])
+            except ValueError as exc:
+                raise ValueError(f"body {label!r}: {exc}") from None
+    if not out["bodies"]:
+        raise ValueError("model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh "
+                         "collision geometry")
+    return EllipsoidSet(**out)
+
+
+def _resolve_bodies(model, bodies):
+    ids = []
+    for k, b in enumerate(bodies):
+        if isinstance(b, (int, np.integer)):
+            if not 0 <= int(b) < model.nbody:
+                raise ValueError(f"bodies[{k}]: body id {b} out of range [0, {model.nbody})")
+            ids.append(int(b))
+        else:
+            i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, str(b))
+            if i < 0:
+                raise ValueError(f"bodies[{k}]: the model has no body named {b!r}")
+            ids.append(i)
+    return ids

@@ -1,0 +1,349 @@
+"""The fitting maths (``mjccd.fitting``) and the layering around it: a core without MuJoCo, no import cycles."""
+import ast
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mjccd
+from mjccd import bvh
+from mjccd.fitting import Shape, ball_max_bound, containment_factor, fit_atoms, fit_shapes, mvee
+from mjccd.quadric import matrix_to_quat, quat_to_matrix
+
+PACKAGE = pathlib.Path(mjccd.__file__).resolve().parent
+CORE = ("bernstein", "quadric", "motion", "ccd", "filters", "scene", "fitting")
+CLIPS = PACKAGE.parent / "data" / "mocap"
+
+# ---------------------------------------------------------------- layering
+
+
+def test_the_core_imports_without_mujoco():
+    """Every core module imports while ``import mujoco`` fails; the blocker itself is shown to work."""
+    code = "\n".join([
+        "import sys",
+        "sys.modules['mujoco'] = None  # any import of mujoco now raises ImportError",
+        *(f"import mjccd.{name}" for name in CORE),
+        "loaded = sorted(m for m in sys.modules if m.startswith(('mjccd.mujoco', 'dm_control')))",
+        "assert not loaded, loaded",
+        "try:",
+        "    import mjccd.fit",
+        "except ImportError:",
+        "    pass",
+        "else:",
+        "    raise AssertionError('mjccd.fit imported without mujoco: the blocker does not work')",
+    ])
+    run = subprocess.run([sys.executable, "-c", code], cwd=PACKAGE.parent, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+
+
+def _modules():
+    """``{dotted name: path}`` of mjccd's modules and packages (two levels)."""
+    paths = sorted(PACKAGE.glob("*.py")) + sorted(PACKAGE.glob("*/*.py"))
+    names = {}
+    for path in paths:
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        names[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return names
+
+
+def _import_edges(name, path, modules):
+    """``{(imported module, "module:line")}`` for every mjccd import of a module, at module level or in a function.
+
+    Importing ``a.b.c`` first runs the packages ``a`` and ``a.b``, so those
+    are edges too, except packages the importer itself lies in (they are
+    already running).  ``from package import name`` of a non-module depends
+    on the package.  Only mjccd modules are nodes: a deferred import of an
+    optional third-party package (matplotlib, tqdm, ...) never enters.
+    """
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    edges = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            targets = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parent = package.split(".")[:len(package.split(".")) - node.level + 1]
+                base = ".".join(parent + ([base] if base else []))
+            targets = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in modules else base
+                       for alias in node.names]
+        else:
+            continue
+        for target in targets:
+            parts = target.split(".")
+            if parts[0] != "mjccd":
+                continue
+            for k in range(1, len(parts) + 1):
+                prefix = ".".join(parts[:k])
+                running = name.startswith(prefix + ".") and prefix != target
+                if prefix in modules and prefix != name and not running:
+                    edges.add((prefix, f"{name}:{node.lineno}"))
+    return edges
+
+
+def _cycle(graph):
+    """One cycle of ``{node: {(node, where)}}`` as ``[(node, where), ...]``, or None."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = "open"
+        for target, where in sorted(graph[node]):
+            stack.append((node, where))
+            if state.get(target) == "open":
+                start = next(i for i, (n, _) in enumerate(stack) if n == target)
+                return stack[start:]
+            if target not in state:
+                found = visit(target)
+                if found:
+                    return found
+            stack.pop()
+        state[node] = "done"
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def test_no_import_cycles_among_mjccd_modules():
+    """Module-level and function-level imports together: the core at the bottom, the MuJoCo side above it."""
+    modules = _modules()
+    graph = {name: _import_edges(name, path, modules) for name, path in modules.items()}
+    cycle = _cycle(graph)
+    if cycle:
+        steps = [f"{where} imports {target}" for (_, where), (target, _) in zip(cycle, cycle[1:] + cycle[:1])]
+        pytest.fail("import cycle: " + "; ".join(steps))
+
+
+def test_the_cycle_check_finds_a_cycle():
+    graph = {"a": {("b", "a.py:1")}, "b": {("c", "b.py:2")}, "c": {("a", "c.py:3")}, "d": set()}
+    assert [node for node, _ in _cycle(graph)] == ["a", "b", "c"]
+    assert _cycle({"a": {("b", "a.py:1")}, "b": set()}) is None
+
+
+def test_a_submodule_import_runs_its_package(tmp_path):
+    """``from mjccd.mujoco.ellipsoids import x`` in mjccd/fit.py depends on mjccd/mujoco/__init__.py too."""
+    modules = {"mjccd", "mjccd.fit", "mjccd.mujoco", "mjccd.mujoco.ellipsoids"}
+    fit = tmp_path / "fit.py"
+    fit.write_text("from mjccd.mujoco.ellipsoids import fit_model\n\ndef f():\n    from mjccd import fit\n")
+    ellipsoids = tmp_path / "ellipsoids.py"
+    ellipsoids.write_text("from mjccd.mujoco import fit_model\n")
+    assert _import_edges("mjccd.fit", fit, modules) == {("mjccd.mujoco", "mjccd.fit:1"),
+                                                        ("mjccd.mujoco.ellipsoids", "mjccd.fit:1")}
+    assert _import_edges("mjccd.mujoco.ellipsoids", ellipsoids, modules) == {("mjccd.mujoco",
+                                                                             "mjccd.mujoco.ellipsoids:1")}
+
+
+# ---------------------------------------------------------------- shapes and their atoms
+
+
+def _rotation(rng):
+    q = rng.normal(size=4)
+    return quat_to_matrix(q / np.linalg.norm(q))
+
+
+def _surface(shape, rng, n=3000):
+    """Random points on the surface of a shape (a mesh: its vertices), placed by its pose."""
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    s = np.asarray(shape.size, dtype=float)
+    if shape.kind == "sphere":
+        local = s[0] * u
+    elif shape.kind == "ellipsoid":
+        local = s * u
+    elif shape.kind == "capsule":
+        caps = s[0] * u + np.where(u[:, 2:] > 0, 1.0, -1.0) * np.array([0.0, 0.0, s[1]])
+        ring = s[0] * u[:, :2] / np.linalg.norm(u[:, :2], axis=1)[:, None]
+        local = np.vstack([caps, np.c_[ring, rng.uniform(-s[1], s[1], n)]])
+    elif shape.kind == "cylinder":
+        angle = rng.uniform(0.0, 2.0 * np.pi, n)
+        rim = s[0] * np.c_[np.cos(angle), np.sin(angle)]
+        local = np.vstack([np.c_[rim * np.sqrt(rng.uniform(0, 1, n))[:, None], rng.choice([-s[1], s[1]], n)],
+                           np.c_[rim, rng.uniform(-s[1], s[1], n)], np.c_[rim, np.full(n, s[1])]])
+    elif shape.kind == "box":
+        local = rng.uniform(-1.0, 1.0, (n, 3))
+        face = rng.integers(0, 3, n)
+        local[np.arange(n), face] = np.sign(local[np.arange(n), face])
+        local *= s
+    else:
+        local = shape.vertices
+    return shape.position + local @ shape.rotation.T
+
+
+def _radius(centre, rotation, radii, points):
+    """``|diag(1/radii) R^T (x - centre)|`` of each point: <= 1 inside the ellipsoid."""
+    return np.linalg.norm((points - centre) @ rotation / radii, axis=1)
+
+
+def _shapes(rng):
+    """One shape of every kind at a random pose; the mesh is a tetrahedron with a cut corner."""
+    vertices = np.array([[0, 0, 0], [0.3, 0, 0], [0, 0.2, 0], [0, 0, 0.1], [0.3, 0.2, 0.05], [0.1, 0.1, 0.2]], float)
+    faces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 4], [1, 4, 5], [2, 5, 4], [1, 5, 3], [2, 3, 5]])
+    sizes = {"sphere": [0.13, 0, 0], "capsule": [0.05, 0.2, 0], "ellipsoid": [0.1, 0.2, 0.3],
+             "cylinder": [0.1, 0.25, 0], "box": [0.3, 0.1, 0.05], "mesh": [0, 0, 0]}
+    return [Shape(kind, np.array(size, float), rng.normal(size=3), _rotation(rng),
+                  *((vertices, faces) if kind == "mesh" else ()))
+            for kind, size in sizes.items()]
+
+
+def test_every_kind_alone_and_all_together_are_contained_and_touched():
+    rng = np.random.default_rng(7)
+    shapes = _shapes(rng)
+    for group in [[shape] for shape in shapes] + [shapes, shapes[1:4]]:
+        fitted = fit_shapes(group)
+        points = np.vstack([_surface(shape, rng) for shape in group])
+        reach = _radius(*fitted, points)
+        kinds = [shape.kind for shape in group]
+        assert reach.max() <= 1.0 + 1e-12, kinds
+        assert reach.max() >= 0.97, f"{kinds}: the ellipsoid is far from touching ({reach.max()})"
+
+
+def test_closed_forms_touch_their_shape():
+    rng = np.random.default_rng(2)
+    for shape in _shapes(rng):
+        exact = shape.closed_form()
+        if shape.kind in ("capsule", "mesh"):
+            assert exact is None
+            continue
+        assert containment_factor(*exact, shape.atoms()) == pytest.approx(1.0, abs=1e-12), shape.kind
+    box = Shape("box", np.array([0.3, 0.1, 0.05]), np.zeros(3), np.eye(3))
+    np.testing.assert_allclose(box.closed_form()[2], np.sqrt(3) * box.size, rtol=1e-15)
+
+
+def test_cylinder_closed_form_is_minimal_among_axis_aligned():
+    """r sqrt(3/2), h sqrt(3): any other axis-aligned ellipsoid that contains the cylinder is bigger."""
+    cylinder = Shape("cylinder", np.array([0.1, 0.25, 0.0]), np.zeros(3), np.eye(3))
+    centre, rotation, radii = cylinder.closed_form()
+    best = np.prod(radii)
+    for stretch in np.linspace(0.5, 2.0, 31):
+        trial = radii * np.array([1.0, 1.0, stretch])
+        grown = trial * containment_factor(centre, rotation, trial, cylinder.atoms())
+        assert np.prod(grown) >= best * (1.0 - 1e-12)
+
+
+def test_volumes_of_the_kinds():
+    rng = np.random.default_rng(3)
+    shapes = {shape.kind: shape for shape in _shapes(rng)}
+    assert shapes["sphere"].volume() == pytest.approx(4 / 3 * np.pi * 0.13 ** 3, rel=1e-14)
+    assert shapes["capsule"].volume() == pytest.approx(np.pi * 0.05 ** 2 * 0.4 + 4 / 3 * np.pi * 0.05 ** 3, rel=1e-14)
+    assert shapes["box"].volume() == pytest.approx(8 * 0.3 * 0.1 * 0.05, rel=1e-14)
+    cube = Shape("mesh", np.zeros(3), np.zeros(3), np.eye(3),
+                 vertices=np.array([[x, y, z] for x in (0, 1) for y in (0, 2) for z in (0, 3)], float),
+                 faces=np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                                 [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]))
+    assert cube.volume() == pytest.approx(6.0, rel=1e-14)
+    with pytest.raises(ValueError, match="kind: expected one of"):
+        Shape("plane", np.zeros(3), np.zeros(3), np.eye(3))
+
+
+# ---------------------------------------------------------------- the fit and the containment bound
+
+
+def test_mvee_of_box_corners_is_the_circumscribed_ellipsoid():
+    corners = np.array([[a, b, c] for a in (-1, 1) for b in (-1, 1) for c in (-1, 1)], float) * [0.3, 0.1, 0.05]
+    c, R, r = mvee(corners + [1.0, 2.0, 3.0], tolerance=1e-9)
+    np.testing.assert_allclose(np.sort(r), np.sort(np.sqrt(3) * np.array([0.3, 0.1, 0.05])), rtol=1e-6)
+    np.testing.assert_allclose(c, [1.0, 2.0, 3.0], atol=1e-9)
+
+
+def test_mvee_of_points_on_an_ellipsoid_is_that_ellipsoid():
+    rng = np.random.default_rng(5)
+    R = _rotation(rng)
+    radii = np.array([0.4, 1.0, 2.5])
+    u = rng.normal(size=(4000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    inside = 0.5 * rng.uniform(-1, 1, (500, 3)) * radii
+    points = np.array([1.0, -2.0, 0.5]) + np.vstack([u * radii, inside]) @ R.T
+    c, Rf, rf = mvee(points, tolerance=1e-8)
+    np.testing.assert_allclose(c, [1.0, -2.0, 0.5], atol=1e-3)
+    order = np.argsort(rf)
+    np.testing.assert_allclose(rf[order], radii, rtol=2e-3)
+    np.testing.assert_allclose(np.abs(Rf[:, order].T @ R), np.eye(3), atol=1e-2)
+
+
+def test_mvee_refuses_flat_points():
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0.5, 0.5, 0]], float)
+    with pytest.raises(ValueError, match="lie in a plane or a line"):
+        mvee(square)
+
+
+def test_a_lone_ellipsoid_atom_fits_to_itself_without_its_closed_form():
+    rng = np.random.default_rng(9)
+    R = _rotation(rng)
+    radii = np.array([0.1, 0.2, 0.3])
+    c, Rf, rf = fit_atoms([Shape("ellipsoid", radii, np.ones(3), R).atoms()[0]])
+    assert np.prod(rf) == pytest.approx(np.prod(radii), rel=1e-3)
+    assert np.prod(rf) >= np.prod(radii) * (1.0 - 1e-12)  # it contains the ellipsoid, so it is no smaller
+
+
+def test_containment_check_can_fail():
+    """The check is not vacuous: a 1% smaller ellipsoid is reported as not containing."""
+    capsule = Shape("capsule", np.array([0.05, 0.2, 0.0]), np.zeros(3), _rotation(np.random.default_rng(1)))
+    c, R, r = fit_shapes([capsule])
+    assert containment_factor(c, R, r, capsule.atoms()) <= 1.0 + 1e-12
+    assert containment_factor(c, R, 0.99 * r, capsule.atoms()) > 1.005
+
+
+def test_trust_region_bound_is_tight_and_above_every_sample():
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(20000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    for trial in range(40):
+        a = rng.normal(size=3)
+        B = rng.normal(size=(3, 3))
+        if trial % 3 == 0:
+            B[:, 2] = 0.0  # flat atom (a disk)
+        if trial % 5 == 0:
+            a = np.zeros(3)  # the hard case of the trust-region problem
+        sampled = np.max(np.sum((a + u @ B.T) ** 2, axis=1))
+        bound = ball_max_bound(a, B)
+        assert sampled <= bound + 1e-12
+        assert bound <= sampled * 1.01
+
+
+# ---------------------------------------------------------------- the rotation helper the fits share
+
+
+def test_matrix_to_quat_inverts_quat_to_matrix_also_near_half_turns():
+    rng = np.random.default_rng(11)
+    quats = rng.normal(size=(400, 4))
+    quats[:100, 0] = 1e-9 * rng.normal(size=100)  # half turns: the trace branch would lose them
+    quats[100:110, 1:] = 0.0  # no turn
+    quats /= np.linalg.norm(quats, axis=1)[:, None]
+    quats *= np.where(quats[:, :1] < 0, -1.0, 1.0)
+    mats = np.array([quat_to_matrix(q) for q in quats])
+    back = matrix_to_quat(mats)
+    assert back.shape == (400, 4) and np.all(back[:, 0] >= 0.0)
+    np.testing.assert_allclose(np.array([quat_to_matrix(q) for q in back]), mats, atol=1e-14)
+    np.testing.assert_allclose(np.abs(np.sum(back * quats, axis=1)), 1.0, atol=1e-14)
+    np.testing.assert_allclose(matrix_to_quat(mats[7]), back[7], rtol=0, atol=0)
+
+
+# ---------------------------------------------------------------- a user: bounds of BVH skeleton parts
+
+
+def test_bvh_parts_are_contained_in_their_ellipsoids():
+    """Every capsule of each rigid part of a skeleton (fingers and shoulders frozen: parts of several limbs)."""
+    rng = np.random.default_rng(4)
+    clip = bvh.read_bvh(CLIPS / "cmu_13_18_boxing_first10s.bvh")
+    frozen = frozenset("LHipJoint RHipJoint LeftShoulder RightShoulder LeftFingerBase LeftHandIndex1 LThumb "
+                       "RightFingerBase RightHandIndex1 RThumb".split())
+    groups = bvh.rigid_groups(clip, bvh.Layout("", bvh.CMU_SCALE, bvh.Placement(), frozen, 1))
+    assert any(len(capsules) > 1 for capsules in groups.values())
+    for joint, capsules in groups.items():
+        radii, centre, quat = bvh.fit_capsules(capsules)
+        points = []
+        for p0, p1, r in capsules:
+            axis = p1 - p0
+            z = axis / np.linalg.norm(axis)
+            x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+            frame = np.c_[x / np.linalg.norm(x), np.cross(z, x / np.linalg.norm(x)), z]
+            capsule = Shape("capsule", np.array([r, np.linalg.norm(axis) / 2, 0.0]), (p0 + p1) / 2, frame)
+            points.append(_surface(capsule, rng, 500))
+        reach = _radius(centre, quat_to_matrix(quat), radii, np.vstack(points))
+        assert 0.97 <= reach.max() <= 1.0, clip.joints[joint].name

@@ -42,6 +42,7 @@ import numpy as np
 from mjccd import interrupts, npz_stream
 from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
+from mjccd.quadric import matrix_to_quat
 
 MOTIONS = ("rigid", "affine", "chain")
 BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
@@ -618,24 +619,7 @@ def geom_poses(model, qpos, geom_ids):
         mujoco.mj_kinematics(model, data)
         pos[k] = data.geom_xpos[geom_ids]
         mats[k] = data.geom_xmat[geom_ids]
-    return pos, _mat_to_quat(mats.reshape(T, N, 3, 3))
-
-
-def _mat_to_quat(R):
-    """Unit quaternions [w, x, y, z] (..., 4) of rotation matrices (..., 3, 3)."""
-    m00, m11, m22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    cand = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
-    best = cand.argmax(axis=-1)
-    s = 2.0 * np.sqrt(np.maximum(np.take_along_axis(cand, best[..., None], -1)[..., 0], 1e-300))
-    d21, d02, d10 = R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]
-    s01, s02, s12 = R[..., 0, 1] + R[..., 1, 0], R[..., 0, 2] + R[..., 2, 0], R[..., 1, 2] + R[..., 2, 1]
-    q = np.stack([
-        np.select([best == 0, best == 1, best == 2], [s / 4, d21 / s, d02 / s], d10 / s),
-        np.select([best == 0, best == 1, best == 2], [d21 / s, s / 4, s01 / s], s02 / s),
-        np.select([best == 0, best == 1, best == 2], [d02 / s, s01 / s, s / 4], s12 / s),
-        np.select([best == 0, best == 1, best == 2], [d10 / s, s02 / s, s12 / s], s / 4)], -1)
-    q *= np.where(q[..., :1] < 0, -1.0, 1.0)
-    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return pos, matrix_to_quat(mats.reshape(T, N, 3, 3))
 
 
 # ---------------------------------------------------------------- one frame

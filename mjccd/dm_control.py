@@ -1,4 +1,11 @@
-"""dm-control integration: ``CCDWrapper`` adds the exact first contact of each control step to observations."""
-from mjccd.mujoco.wrappers import OBSERVATION_KEYS, CCDWrapper, observation_specs
+"""dm-control integration: ``CCDWrapper`` adds the exact first contact of each control step to observations.
 
-__all__ = ["CCDWrapper", "OBSERVATION_KEYS", "observation_specs"]
+The wrappers need a dm-control that works with the installed MuJoCo (not yet MuJoCo 4 with
+dm-control 1.0.50): ``dm_control_problem()`` says why not, and the wrappers raise
+``DmControlUnavailableError`` naming both versions.
+"""
+from mjccd.mujoco.wrappers import (OBSERVATION_KEYS, CCDWrapper, DmControlUnavailableError, dm_control_problem,
+                                   observation_specs)
+
+__all__ = ["CCDWrapper", "DmControlUnavailableError", "OBSERVATION_KEYS", "dm_control_problem",
+           "observation_specs"]

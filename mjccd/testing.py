@@ -9,7 +9,7 @@ from mjccd import _validate
 from mjccd.ccd import collision_intervals
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
-from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
 from mjccd.mujoco.monitor import CCDMonitor
 from mjccd.mujoco.motions import State, motions_between
 
@@ -73,8 +73,6 @@ def _setup(model, trajectory, ellipsoids, times):
     model = load_model(model)
     qpos, times = load_trajectory(trajectory, model, times)
     if ellipsoids is None:
-        from mjccd.fit import fit_model
-
         ellipsoids = fit_model(model)
     elif not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")

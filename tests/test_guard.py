@@ -9,6 +9,7 @@ from mjccd.fit import fit_model
 from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, geom_ellipsoids
 
 WALL_HALF, BALL = 0.01, 0.02
+MUJOCO_MAJOR = int(mujoco.__version__.split(".")[0])
 
 # A ball thrown along +x at a 2 cm ellipsoid wall.  The ball carries a motor with a
 # filtered activation and the model has sensors, so that act, warm starts and
@@ -73,7 +74,11 @@ def test_guard_stops_tunneling_through_thin_wall(dt, speed):
     plain = thrown(model, speed)
     for _ in range(steps):
         mujoco.mj_step(model, plain)
-    assert plain.qpos[0] > 1.0, "plain MuJoCo should tunnel in this case"
+    # dt 2 ms at 50 m/s: a step starts with the ball's centre on the wall's mid-plane. MuJoCo 3.17's contact
+    # there lets the ball through; MuJoCo 4.0's sphere-ellipsoid contact has the opposite normal and pushes it
+    # back, so plain MuJoCo 4 does not tunnel in this one case (the guard's part below holds on both).
+    if not (MUJOCO_MAJOR >= 4 and (dt, speed) == (0.002, 50.0)):
+        assert plain.qpos[0] > 1.0, "plain MuJoCo should tunnel in this case"
 
     data = thrown(model, speed)
     guard = GuardedStepper(model, data, fit_model(model))
@@ -367,6 +372,7 @@ def _env(speed, control_timestep=0.02):
     return control.Environment(physics, Throw(random=0), control_timestep=control_timestep, time_limit=1.0)
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrapper_guards_substeps():
     plain, wrapped = _env(150.0), GuardedWrapper(_env(150.0))
     plain.reset()
@@ -380,6 +386,7 @@ def test_dm_control_wrapper_guards_substeps():
     assert len(wrapped.last_reports) == 5
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrapper_without_contact_is_identical():
     plain, wrapped = _env(-2.0), GuardedWrapper(_env(-2.0))
     plain.reset()
@@ -393,6 +400,7 @@ def test_dm_control_wrapper_without_contact_is_identical():
     assert np.array_equal(full_state(pm, pd), full_state(wm, wd))
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrapper_raises_physics_error_like_dm_control(poison_short_steps):
     from dm_control.rl.control import PhysicsError
 

@@ -271,6 +271,7 @@ def test_kinematics_leaves_user_data_alone(arm):
 # ---------------------------------------------------------------- wrappers and test helpers
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrapper_matches_the_monitor():
     from dm_control import suite
 
@@ -305,6 +306,7 @@ def test_dm_control_wrapper_matches_the_monitor():
         assert tuple(obs["ccd/contact_pair"]) == first.body_ids
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrapper_reports_a_thrown_ball():
     from dm_control.rl import control
 

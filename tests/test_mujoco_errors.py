@@ -173,8 +173,8 @@ def _dm_env():
     return control.Environment(physics, Behind(random=0), control_timestep=0.01, time_limit=1.0)
 
 
+@pytest.mark.dm_control
 def test_dm_control_wrappers_report_a_reset_unstable_alike():
-    pytest.importorskip("dm_control")
     from mjccd.dm_control import CCDWrapper
     from mjccd.mujoco import GuardedWrapper
 
@@ -191,6 +191,25 @@ def test_dm_control_wrappers_report_a_reset_unstable_alike():
             assert wrapped.last_contacts == []
             assert np.isinf(ts.observation["ccd/contact_time"])
     assert unstable == [[True, False]] * 2
+
+
+
+def test_dm_control_wrappers_name_the_versions_where_dm_control_does_not_work(monkeypatch):
+    """On MuJoCo 4 (dm-control 1.0.50 cannot build a physics there) the wrappers refuse, naming the versions."""
+    from mjccd.dm_control import CCDWrapper, DmControlUnavailableError
+    from mjccd.mujoco import GuardedWrapper, wrappers
+
+    problem = wrappers.dm_control_problem()
+    if problem is None:  # dm-control works with this MuJoCo: pretend it does not
+        problem = f"dm-control 0.0 does not work with MuJoCo {mujoco.__version__} (AttributeError: x)"
+        monkeypatch.setattr(wrappers, "dm_control_problem", lambda: problem)
+    assert f"MuJoCo {mujoco.__version__}" in problem and "dm-control" in problem
+    for wrap in (CCDWrapper, GuardedWrapper):
+        with pytest.raises(DmControlUnavailableError) as info:
+            wrap(object())
+        message = str(info.value)
+        assert message.startswith(f"{wrap.__name__} needs dm-control, but {problem}")
+        assert "mujoco>=3.17,<4" in message and "CCDMonitor" in message
 
 
 # ------------------------------------------------------------ arguments checked alike

@@ -1,15 +1,28 @@
-"""Environment wrappers: the exact first contact of every control step, over all physics substeps."""
+"""Environment wrappers: the exact first contact of every control step, over all physics substeps.
+
+The dm-control wrappers (``CCDWrapper`` here, ``GuardedWrapper`` in :mod:`mjccd.mujoco.guard`) need a
+dm-control that works with the installed MuJoCo: dm-control 1.0.50 installs next to MuJoCo 4 (it declares
+``mujoco>=3.17`` without a cap) but cannot build a physics there.  :func:`dm_control_problem` says why
+not (once per process); the wrappers then raise :class:`DmControlUnavailableError`.  Nothing else in
+mjccd needs dm-control: the monitor, the guard's stepper and the Gymnasium wrapper work on MuJoCo 4.
+"""
 import collections
+import functools
+import importlib.metadata
 from collections.abc import Mapping
 
-import dm_env
 import mujoco
 import numpy as np
-from dm_env import specs
 
 from mjccd.errors import InputError, InputTypeError
-from mjccd.mujoco.ellipsoids import EllipsoidSet
+from mjccd.mujoco.ellipsoids import EllipsoidSet, fit_model
 from mjccd.mujoco.monitor import CCDMonitor, step_count
+
+try:  # dm_env comes with dm-control, which mjccd leaves out on Python 3.13+ (pyproject.toml)
+    import dm_env
+    from dm_env import specs
+except ImportError:
+    dm_env = specs = None
 
 OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
 
@@ -17,18 +30,67 @@ OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point",
 def fitted_or_checked(model, ellipsoids, per):
     """``ellipsoids`` when given (checked), else the bounding ellipsoids fitted to ``model``."""
     if ellipsoids is None:
-        from mjccd.fit import fit_model
-
         return fit_model(model, per=per)
     if not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
     return ellipsoids
 
 
-class DelegatingEnvironment(dm_env.Environment):
+class DmControlUnavailableError(RuntimeError):
+    """A dm-control wrapper was used where dm-control does not work (MuJoCo 4 with dm-control 1.0.50) or is missing."""
+
+
+# the smallest dm-control use: a physics from MJCF, one step
+_PROBE_XML = '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+
+
+def _version(distribution):
+    try:
+        return importlib.metadata.version(distribution)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+@functools.lru_cache(maxsize=None)
+def dm_control_problem():
+    """None when dm-control works with the installed MuJoCo, else a sentence naming both versions and why.
+
+    Tries the import and a minimal use (a physics built from MJCF and stepped once), once per process.
+    """
+    mj = f"MuJoCo {mujoco.__version__}"
+    version = _version("dm-control")
+    if version is None or dm_env is None:
+        return (f"dm-control is not installed next to {mj} (mjccd installs it on Python < 3.13 only, where "
+                f"its labmaze has wheels: pip install 'mjccd[dm-control]')")
+    try:
+        from dm_control import mujoco as dm_mujoco
+        from dm_control.rl import control  # noqa: F401 (the wrappers' environments)
+
+        dm_mujoco.Physics.from_xml_string(_PROBE_XML).step()
+    except Exception as exc:  # noqa: BLE001 - whatever breaks, the wrappers cannot run
+        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        return f"dm-control {version} does not work with {mj} ({type(exc).__name__}: {first_line})"
+    return None
+
+
+def require_dm_control(user):
+    """Raise :class:`DmControlUnavailableError` naming ``user`` and the versions when dm-control does not work."""
+    problem = dm_control_problem()
+    if problem is None:
+        return
+    advice = (f"The MuJoCo API (mjccd.mujoco.CCDMonitor, GuardedStepper, mjccd.mujoco.gym.CCDGymWrapper) works "
+              f"without dm-control, on MuJoCo {mujoco.__version__} too")
+    if _version("dm-control") is not None:
+        advice = ("For the dm-control wrappers use a MuJoCo that dm-control supports "
+                  "(pip install 'mujoco>=3.17,<4'). " + advice)
+    raise DmControlUnavailableError(f"{user} needs dm-control, but {problem}. {advice}")
+
+
+class DelegatingEnvironment(dm_env.Environment if dm_env is not None else object):
     """Base of mjccd's dm-control wrappers: holds a dm-control environment and passes everything on."""
 
     def __init__(self, env):
+        require_dm_control(type(self).__name__)
         physics = getattr(env, "physics", None)
         if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
             raise InputTypeError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
@@ -114,6 +176,8 @@ class SubstepRecorder:
 
 def observation_specs():
     """Specs of the ``ccd/*`` observation entries."""
+    if specs is None:
+        raise DmControlUnavailableError(f"observation_specs needs dm_env: {dm_control_problem()}")
     return collections.OrderedDict([
         ("ccd/contact_time", specs.Array((), np.float64, "ccd/contact_time")),
         ("ccd/contact_pair", specs.Array((2,), np.int32, "ccd/contact_pair")),

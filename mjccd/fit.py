@@ -15,6 +15,7 @@ import mujoco
 from mjccd import files
 from mjccd.errors import InputError, MjccdError
 from mjccd.mujoco.ellipsoids import fit_model
+from mjccd.mujoco.warnings import mujoco_warnings
 
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
@@ -128,17 +129,6 @@ model itself, are replaced only with --force; both outputs appear together or
 not at all."""
 
 
-@contextlib.contextmanager
-def _warnings_on_stderr(model_path):
-    """Send MuJoCo's warnings to stderr, naming the model (not to stdout and a MUJOCO_LOG.TXT in the working folder)."""
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(lambda text: print(f"mjccd fit: {model_path}: MuJoCo warns: {text}", file=sys.stderr))
-    try:
-        yield
-    finally:
-        mujoco.set_mju_user_warning(previous)
-
-
 def _output_paths(args):
     """The MJCF output and the ellipsoid file to write (each None when not asked for), checked before the fit."""
     if not 0 <= args.group <= 5:
@@ -170,7 +160,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     written = []
     try:
-        with _warnings_on_stderr(args.model):
+        with mujoco_warnings(lambda text: print(f"mjccd fit: {args.model}: MuJoCo warns: {text}",
+                                                file=sys.stderr)):
             model = load_model(args.model)
             output, target = _output_paths(args)
             written = [p for p in (output, target) if p]

@@ -42,6 +42,7 @@ import numpy as np
 from mjccd import interrupts, npz_stream
 from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
+from mjccd.mujoco.warnings import mujoco_warnings
 from mjccd.quadric import matrix_to_quat
 
 MOTIONS = ("rigid", "affine", "chain")
@@ -87,20 +88,6 @@ def _reason(exc):
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-@contextmanager
-def _mujoco_warnings():
-    """Collect MuJoCo's warnings instead of letting it append them to MUJOCO_LOG.TXT in the working folder."""
-    import mujoco
-
-    previous = mujoco.get_mju_user_warning()
-    caught = []
-    mujoco.set_mju_user_warning(caught.append)
-    try:
-        yield caught
-    finally:
-        mujoco.set_mju_user_warning(previous)
-
-
 def load_model(model_path):
     """Compile an MJCF file; errors name the file, then give MuJoCo's message; its warnings go to stderr."""
     import mujoco
@@ -110,7 +97,7 @@ def load_model(model_path):
         raise ReplayError(f"{model_path}: is a folder, expected an MJCF model file")
     if not path.is_file():
         raise ReplayError(f"{model_path}: model file not found")
-    with _mujoco_warnings() as warned:
+    with mujoco_warnings() as warned:
         try:
             model = mujoco.MjModel.from_xml_path(str(path))
         except ValueError as exc:

@@ -16,7 +16,6 @@ import platform
 import statistics
 import sys
 import time
-from contextlib import contextmanager
 
 import mujoco
 import numpy as np
@@ -27,6 +26,7 @@ from mjccd.bench import options
 from mjccd.bench.report import write_section
 from mjccd.errors import InputError
 from mjccd.mujoco import CCDMonitor, geom_ellipsoids
+from mjccd.mujoco.warnings import mujoco_warnings
 
 TIMESTEP = 0.002     # s, MuJoCo's default
 LIMB_DAMPING = 0.02  # N m s / rad on every joint but the boxers' free joints
@@ -77,18 +77,6 @@ def _per_step_ms(step, n):
     return (time.perf_counter() - t0) / n * 1e3
 
 
-@contextmanager
-def _mujoco_warnings():
-    """MuJoCo's warning texts, collected instead of printed and appended to MUJOCO_LOG.TXT in the working folder."""
-    previous = mujoco.get_mju_user_warning()
-    caught = []
-    mujoco.set_mju_user_warning(caught.append)
-    try:
-        yield caught
-    finally:
-        mujoco.set_mju_user_warning(previous)
-
-
 def check_stable(model, data, start_time, steps, run, warned):
     """Raise InputError if MuJoCo warned during ``run`` or reset the simulation (after a bad state it resets
     the data, and the timing would then be of the reset pose); ``warned``: the warning texts collected."""
@@ -105,7 +93,7 @@ def run(model, qpos, ellipsoids, pairs, steps, repeats, speed, seed):
     start = sparring_state(model, qpos, speed, seed)
     rows = {"mj_step": [], "rigid": [], "affine": []}
     counts = {}
-    with _mujoco_warnings() as warned:
+    with mujoco_warnings() as warned:
         for _ in tqdm(range(repeats), desc="bench monitor", unit="repeat"):
             data = mujoco.MjData(model)
             mujoco.mj_copyData(data, model, start)

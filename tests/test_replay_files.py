@@ -1,7 +1,6 @@
 """``mjccd replay --out``: used folders, --force, nothing partial after an error or Ctrl-C."""
 import json
 import os
-import pathlib
 import re
 import signal
 import subprocess
@@ -14,19 +13,9 @@ import pytest
 from mjccd import replay
 from mjccd.files import MANIFEST
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-MODEL = ROOT / "models" / "boxing.xml"
-TRAJ = ROOT / "data" / "boxing_traj.npz"
-FIRST, LAST = 136, 150   # frames of the bundled trajectory around the first glove contacts
+from test_replay import FIRST, LAST, MODEL, ROOT, TRAJ, short_traj  # noqa: F401 (the fixture)
+
 REPORTS = ["contacts.csv", "contacts.json", "timeline.png"]
-
-
-@pytest.fixture(scope="module")
-def short_traj(tmp_path_factory):
-    path = tmp_path_factory.mktemp("traj") / "short.npz"
-    with np.load(TRAJ) as d:
-        np.savez(path, qpos=d["qpos"][FIRST:LAST], time=d["time"][FIRST:LAST])
-    return path
 
 
 def _earlier_run(folder):

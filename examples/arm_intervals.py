@@ -12,16 +12,17 @@ import pathlib
 import numpy as np
 
 from mjccd import replay
+from mjccd.mujoco import ModelAdapter
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def main():
     model = replay.load_model(ROOT / "models" / "arm_obstacle.xml")
-    bounds = replay.bounding_ellipsoids(model, None)
+    checker = ModelAdapter(model, *replay.replay_ellipsoids(model), "chain")
     with np.load(ROOT / "data" / "arm_traj.npz") as data:
         keys = data["keyframes"]
-    rows = replay.interval_table(model, bounds, keys[0], keys[1])
+    rows = replay.interval_table(checker, keys[0], keys[1])
     print(replay.format_interval_table(rows))
     hits = [r for r in rows if r["intervals"]]
     print(f"{len(hits)} of {len(rows)} pairs collide; earliest entry "

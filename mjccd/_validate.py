@@ -26,14 +26,19 @@ def _shown(value):
     return reprlib.repr(value)
 
 
-def array(value, shape, field):
-    """A finite float64 array of the given shape (None in ``shape`` = any length)."""
+def _float64(value, field, expected):
+    """``np.asarray(value, float64)``; the error names the field and says what was ``expected``."""
     try:
-        arr = np.asarray(value, dtype=np.float64)
+        return np.asarray(value, dtype=np.float64)
     except OverflowError:
         raise InputError(f"{field}: a number is too large for a double") from None
     except (TypeError, ValueError):
-        raise InputError(f"{field}: expected numbers, got {_shown(value)}") from None
+        raise InputError(f"{field}: expected {expected}, got {_shown(value)}") from None
+
+
+def array(value, shape, field):
+    """A finite float64 array of the given shape (None in ``shape`` = any length)."""
+    arr = _float64(value, field, "numbers")
     if arr.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, arr.shape)):
         want = "x".join("N" if s is None else str(s) for s in shape) or "scalar"
         raise InputError(f"{field}: expected shape {want}, got {arr.shape}")
@@ -137,12 +142,7 @@ def pose_array(value, field, n=None):
 
 def polynomial(value, field):
     """Power-basis coefficients (lowest degree first): a non-empty finite 1-D list."""
-    try:
-        p = np.asarray(value, dtype=np.float64)
-    except OverflowError:
-        raise InputError(f"{field}: a number is too large for a double") from None
-    except (TypeError, ValueError):
-        raise InputError(f"{field}: expected a list of coefficients, got {_shown(value)}") from None
+    p = _float64(value, field, "a list of coefficients")
     if p.ndim != 1 or p.size == 0:
         raise InputError(f"{field}: expected a non-empty list of coefficients")
     if not np.all(np.isfinite(p)):

@@ -180,6 +180,37 @@ def bounds(c):
 
 
 @_jit
+def abs_maxima(P, U, s):
+    """Largest |coefficient| of each entry of a 3x3 matrix P (3, 3, n), a vector U (3, m) and a scalar s
+    of polynomials: (3, 3), (3,) and a float (bounds of their values on [0, 1])."""
+    Pm = np.empty((3, 3))
+    Um = np.empty(3)
+    for i in range(3):
+        for j in range(3):
+            Pm[i, j] = np.abs(P[i, j]).max()
+        Um[i] = np.abs(U[i]).max()
+    return Pm, Um, np.abs(s).max()
+
+
+@_jit
+def adjugate3(M):
+    """Adjugate and determinant of a 3x3 matrix of Bernstein polynomials of one degree n (M: (3, 3, n + 1)).
+
+    Returns ``adj`` (3, 3, 2n + 1), ``adj[i, j] = (-1)^(i+j)`` times the minor of M without row j and
+    column i, and ``det = M[0, 0] adj[0, 0] + M[0, 1] adj[1, 0] + M[0, 2] adj[2, 0]`` (degree 3n).
+    """
+    adj = np.empty((3, 3, 2 * M.shape[2] - 1))
+    for i in range(3):
+        for j in range(3):
+            r0, r1 = (1 if j == 0 else 0), (1 if j == 2 else 2)  # the rows other than j, ascending
+            c0, c1 = (1 if i == 0 else 0), (1 if i == 2 else 2)
+            minor = add(multiply(M[r0, c0], M[r1, c1]), -multiply(M[r0, c1], M[r1, c0]))
+            adj[i, j] = minor if (i + j) % 2 == 0 else -minor
+    det = add(add(multiply(M[0, 0], adj[0, 0]), multiply(M[0, 1], adj[1, 0])), multiply(M[0, 2], adj[2, 0]))
+    return adj, det
+
+
+@_jit
 def from_power(p):
     """Bernstein coefficients (degree len(p) - 1) of ``sum_k p[k] t**k``."""
     n = p.shape[0] - 1

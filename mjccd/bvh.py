@@ -19,13 +19,12 @@ import math
 import numbers
 import os
 import re
-import sys
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
-from mjccd import files
+from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
 from mjccd.fitting import ball, fit_atoms
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
@@ -684,12 +683,8 @@ def main(argv=None):
             if args.traj:
                 traj_file = stack.enter_context(files.atomic_open(args.traj, "wb"))
                 np.savez_compressed(traj_file, qpos=qpos, time=time)
-    except (MjccdError, ValueError) as exc:
-        print(f"mjccd import-bvh: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"mjccd import-bvh: cannot write {', '.join(outputs)}: {exc.strerror}", file=sys.stderr)
-        return 2
+    except (MjccdError, ValueError, OSError) as exc:
+        return _command.failure("import-bvh", exc, outputs)
     msg = f"{args.output}: {len(clip.joints)} joints, nq={qpos.shape[1]}"
     if args.traj:
         msg += f"; {args.traj}: {qpos.shape[0]} frames at {1.0 / clip.frame_time:.4g} Hz"

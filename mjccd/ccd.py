@@ -37,6 +37,7 @@ from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, centre_extent, gam
 from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
 
 _jit = numba.njit(cache=True, nogil=True)
+_inline = numba.njit(cache=True, nogil=True, inline="always")  # small hot-path helpers
 
 SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is accepted
 THIN = 8.0               # a body whose largest radius exceeds its smallest this many times is thin
@@ -757,6 +758,20 @@ def _exit_capacity(rows, cols, max_pops):
     return max(2, min(EXIT_POOL_BYTES // (8 * rows * cols), max_pops + 2))
 
 
+@_inline
+def _exit_heap_before(ht, hq, k, t, seq):
+    """Entry k of search_exit's heap comes before (t, seq): the order of heapq on (t, index of creation)."""
+    return ht[k] < t or (ht[k] == t and hq[k] < seq)
+
+
+@_inline
+def _exit_heap_put(ht, hq, hs, k, t, seq, slot):
+    """Entry k of search_exit's heap := (t, seq, slot)."""
+    ht[k] = t
+    hq[k] = seq
+    hs[k] = slot
+
+
 @_jit
 def _exit_heap_push(ht, hq, hs, nh, t, seq, slot):
     """Push (start time t, creation number seq, pool slot) on search_exit's heap of nh entries; returns nh + 1.
@@ -766,15 +781,11 @@ def _exit_heap_push(ht, hq, hs, nh, t, seq, slot):
     k = nh
     while k > 0:
         p = (k - 1) >> 1
-        if ht[p] < t or (ht[p] == t and hq[p] < seq):
+        if _exit_heap_before(ht, hq, p, t, seq):
             break
-        ht[k] = ht[p]
-        hq[k] = hq[p]
-        hs[k] = hs[p]
+        _exit_heap_put(ht, hq, hs, k, ht[p], hq[p], hs[p])
         k = p
-    ht[k] = t
-    hq[k] = seq
-    hs[k] = slot
+    _exit_heap_put(ht, hq, hs, k, t, seq, slot)
     return nh + 1
 
 
@@ -790,17 +801,13 @@ def _exit_heap_pop(ht, hq, hs, nh):
         c = 2 * k + 1
         if c >= nh:
             break
-        if c + 1 < nh and (ht[c + 1] < ht[c] or (ht[c + 1] == ht[c] and hq[c + 1] < hq[c])):
+        if c + 1 < nh and _exit_heap_before(ht, hq, c + 1, ht[c], hq[c]):
             c += 1
-        if not (ht[c] < t or (ht[c] == t and hq[c] < seq)):
+        if not _exit_heap_before(ht, hq, c, t, seq):
             break
-        ht[k] = ht[c]
-        hq[k] = hq[c]
-        hs[k] = hs[c]
+        _exit_heap_put(ht, hq, hs, k, ht[c], hq[c], hs[c])
         k = c
-    ht[k] = t
-    hq[k] = seq
-    hs[k] = slot
+    _exit_heap_put(ht, hq, hs, k, t, seq, slot)
     return nh
 
 
@@ -1206,13 +1213,7 @@ def _reframed_errors(P, U, s, err, origin, length):
     """
     n = max(P.shape[2], U.shape[1], s.shape[0]) + 2
     g = gamma(4 * n + 20)
-    Pm = np.zeros((3, 3))
-    Um = np.zeros(3)
-    for i in range(3):
-        for j in range(3):
-            Pm[i, j] = np.abs(P[i, j]).max()
-        Um[i] = np.abs(U[i]).max()
-    sm = np.abs(s).max()
+    Pm, Um, sm = bz.abs_maxima(P, U, s)
     o = np.abs(origin)
     out = np.empty((4, 4))
     for i in range(3):

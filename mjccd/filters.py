@@ -25,6 +25,10 @@ they cannot clear goes to :mod:`mjccd.ccd`.
   so ``n^T T n`` is a sum of three squares of cubics.
 * **Plane cache**: the normal that held is kept in the first ellipsoid's frame
   and tried first in the next frame (:mod:`mjccd.scene` drives it).
+* **Slabs** (:func:`slabs_clear`, the scene's cheap yes/no test
+  :func:`mjccd.scene.may_touch_kernel`): a fixed normal n, the centres' gap
+  along n (linear in t) against bounds of both supports that hold over the
+  whole step; no polynomial, no subdivision.
 
 For chains and other rational motions, :func:`moving_sphere` bounds the
 centre's rational curve by its chord plus the largest Bernstein coefficient of
@@ -46,6 +50,7 @@ EPS = 2.220446049250313e-16
 SPHERE_INFLATE = 1e-9        # relative growth of the summed radii: rounding never hides an entry
 PLANE_MARGIN = 1e-11         # relative rounding margin on the Bernstein coefficients of G
 PLANE_DEPTH = 8              # subdivision depth of the positivity test
+SLAB_MARGIN = 1e-6           # relative clearance a slab must leave: closer pairs the exact solver may call touching
 WORK_SHAPE = (PLANE_DEPTH + 4, 10)  # scratch rows of the witness kernels (subdivision stack, n^T T n)
 INV_B8 = (1.0, 1 / 8, 1 / 28, 1 / 56, 1 / 70, 1 / 56, 1 / 28, 1 / 8, 1.0)  # scaled -> plain Bernstein, degree 8
 
@@ -107,6 +112,105 @@ def sphere_entry(ca0, ca1, ra, cb0, cb1, rb):
     if t > 1.0:
         return -1.0
     return max(0.0, t * (1.0 - 1e-12))
+
+
+# ---------------------------------------------------------------- slabs
+#
+# Ellipsoids given by positions p (N, 3) and unit quaternions q (N, 4) at t = 0
+# and t = 1 (p0, q0, p1, q1), moving as the scene moves them (centres lerped).
+
+
+@_inline
+def _support_unit(radii, q, e, nx, ny, nz):
+    """Support value sqrt(sum_k (r_k (R[:, k] . n))^2) of ellipsoid e (centred) with unit quaternion q[e]."""
+    w, x, y, z = q[e, 0], q[e, 1], q[e, 2], q[e, 3]
+    # columns of the rotation matrix of (w, x, y, z), dotted with n
+    c0 = (1.0 - 2.0 * (y * y + z * z)) * nx + 2.0 * (x * y + w * z) * ny + 2.0 * (x * z - w * y) * nz
+    c1 = 2.0 * (x * y - w * z) * nx + (1.0 - 2.0 * (x * x + z * z)) * ny + 2.0 * (y * z + w * x) * nz
+    c2 = 2.0 * (x * z + w * y) * nx + 2.0 * (y * z - w * x) * ny + (1.0 - 2.0 * (x * x + y * y)) * nz
+    a = radii[e, 0] * c0
+    b = radii[e, 1] * c1
+    c = radii[e, 2] * c2
+    return np.sqrt(a * a + b * b + c * c)
+
+
+@_inline
+def _swept_support(affine, radii, rmax, q0, q1, e, nx, ny, nz):
+    """Upper bound, over the whole step, of ellipsoid e's support in direction n (about its centre).
+
+    Exact for a constant orientation; for the affine lerp the larger of the two
+    ends (the inverse of the lerped quadric is convex in t); else the largest
+    semi-axis.
+    """
+    same = True
+    opposite = True
+    for m in range(4):
+        same = same and q0[e, m] == q1[e, m]
+        opposite = opposite and q0[e, m] == -q1[e, m]
+    if same or opposite:
+        return _support_unit(radii, q0, e, nx, ny, nz)
+    if affine:
+        return max(_support_unit(radii, q0, e, nx, ny, nz), _support_unit(radii, q1, e, nx, ny, nz))
+    return rmax[e]
+
+
+@_inline
+def _slab_clear(affine, radii, rmax, p0, q0, p1, q1, i, j, nx, ny, nz, tol):
+    """True when planes normal to the unit vector n separate ellipsoids i and j during the whole step.
+
+    The centre gap along n is linear in t, so its minimum is at an end; it
+    must exceed both supports' bounds over the step by more than ``tol``.
+    """
+    g0 = (p0[j, 0] - p0[i, 0]) * nx + (p0[j, 1] - p0[i, 1]) * ny + (p0[j, 2] - p0[i, 2]) * nz
+    g1 = (p1[j, 0] - p1[i, 0]) * nx + (p1[j, 1] - p1[i, 1]) * ny + (p1[j, 2] - p1[i, 2]) * nz
+    if g0 < 0.0:
+        g0, g1, nx, ny, nz = -g0, -g1, -nx, -ny, -nz
+    gap = min(g0, g1)
+    if gap <= tol:
+        return False
+    return gap - _swept_support(affine, radii, rmax, q0, q1, i, nx, ny, nz) \
+        - _swept_support(affine, radii, rmax, q0, q1, j, nx, ny, nz) > tol
+
+
+@_inline
+def _thin_axis(radii, q, e):
+    """World direction, at unit quaternion q[e], of ellipsoid e's shortest semi-axis."""
+    k = 0
+    if radii[e, 1] < radii[e, k]:
+        k = 1
+    if radii[e, 2] < radii[e, k]:
+        k = 2
+    w, x, y, z = q[e, 0], q[e, 1], q[e, 2], q[e, 3]
+    if k == 0:
+        return 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)
+    if k == 1:
+        return 2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)
+    return 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+
+
+@_inline
+def slabs_clear(affine, radii, rmax, p0, q0, p1, q1, i, j):
+    """True when a slab keeps ellipsoids i and j apart during the whole step (rigid or ``affine`` lerp).
+
+    Tries the centre line at t = 0 and at t = 1 and each ellipsoid's thinnest
+    axis at t = 0.  A slab must leave a clearance of ``SLAB_MARGIN`` times the
+    summed largest semi-axes, more than rounding and more than the exact
+    solver's own band: a pair cleared here is one the solver finds free.
+    """
+    tol = SLAB_MARGIN * (rmax[i] + rmax[j])
+    d0x, d0y, d0z = p0[j, 0] - p0[i, 0], p0[j, 1] - p0[i, 1], p0[j, 2] - p0[i, 2]
+    d1x, d1y, d1z = p1[j, 0] - p1[i, 0], p1[j, 1] - p1[i, 1], p1[j, 2] - p1[i, 2]
+    n0 = np.sqrt(d0x * d0x + d0y * d0y + d0z * d0z)
+    if n0 > 0.0 and _slab_clear(affine, radii, rmax, p0, q0, p1, q1, i, j, d0x / n0, d0y / n0, d0z / n0, tol):
+        return True
+    n1 = np.sqrt(d1x * d1x + d1y * d1y + d1z * d1z)
+    if n1 > 0.0 and _slab_clear(affine, radii, rmax, p0, q0, p1, q1, i, j, d1x / n1, d1y / n1, d1z / n1, tol):
+        return True
+    ax, ay, az = _thin_axis(radii, q0, i)
+    if _slab_clear(affine, radii, rmax, p0, q0, p1, q1, i, j, ax, ay, az, tol):
+        return True
+    ax, ay, az = _thin_axis(radii, q0, j)
+    return _slab_clear(affine, radii, rmax, p0, q0, p1, q1, i, j, ax, ay, az, tol)
 
 
 # ---------------------------------------------------------------- inverse shape polynomials
@@ -490,22 +594,13 @@ def moving_sphere(ellipsoid, motion):
         scale = max(np.linalg.norm(motion.start[:, :3], 2), np.linalg.norm(motion.end[:, :3], 2))
         return motion.start[:, 3].copy(), motion.end[:, 3].copy(), r * float(scale)
     if isinstance(motion, (mo.Chain, mo.Rational)):
-        return _rational_centre_sphere(*motion._w, r)
+        return _rational_centre_sphere(*motion.scaled_inverse_w(), r)
     raise InputError(f"motion: no bounding sphere for motion kind {getattr(motion, 'kind', type(motion).__name__)!r}")
 
 
 def _rational_centre_sphere(G, h, g, r):
     """Chord plus deviation bound of the centre ``-adj(G) h / det(G)`` of a W-form rigid motion."""
-    adj = [[None] * 3 for _ in range(3)]
-    for i in range(3):
-        for j in range(3):
-            rows = [k for k in range(3) if k != j]
-            cols = [k for k in range(3) if k != i]
-            m = bz.add(bz.multiply(G[rows[0], cols[0]].copy(), G[rows[1], cols[1]].copy()),
-                       -bz.multiply(G[rows[0], cols[1]].copy(), G[rows[1], cols[0]].copy()))
-            adj[i][j] = m if (i + j) % 2 == 0 else -m
-    det = bz.add(bz.add(bz.multiply(G[0, 0].copy(), adj[0][0]), bz.multiply(G[0, 1].copy(), adj[1][0])),
-                 bz.multiply(G[0, 2].copy(), adj[2][0]))
+    adj, det = bz.adjugate3(G)
     num = []
     for i in range(3):
         acc = np.zeros(1)

@@ -12,7 +12,7 @@ import tempfile
 
 import mujoco
 
-from mjccd import files
+from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
 from mjccd.mujoco.ellipsoids import fit_model
 from mjccd.mujoco.warnings import mujoco_warnings
@@ -177,12 +177,8 @@ def main(argv=None):
                 stack.enter_context(files.atomic_open(output, "w", encoding="utf-8")).write(xml)
             if target:
                 stack.enter_context(files.atomic_open(target, "wb")).write(data)
-    except (MjccdError, ValueError) as exc:
-        print(f"mjccd fit: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"mjccd fit: cannot write {', '.join(written)}: {exc.strerror}", file=sys.stderr)
-        return 2
+    except (MjccdError, ValueError, OSError) as exc:
+        return _command.failure("fit", exc, written)
     if not args.quiet:
         print(volume_report(ellipsoids))
     return 0

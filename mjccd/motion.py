@@ -349,13 +349,7 @@ def w_quadric_errors(G, h, g, radii):
     n = max(G.shape[2], h.shape[1], g.shape[0])
     rho = gamma(6 * n + 40)
     d = 1.0 / (radii * radii)
-    Gm = np.empty((3, 3))
-    hm = np.empty(3)
-    for k in range(3):
-        for i in range(3):
-            Gm[k, i] = np.abs(G[k, i]).max()
-        hm[k] = np.abs(h[k]).max()
-    gm = np.abs(g).max()
+    Gm, hm, gm = bz.abs_maxima(G, h, g)
     e = np.empty((4, 4))
     for i in range(3):
         for j in range(3):
@@ -480,6 +474,14 @@ class Motion(abc.ABC):
         precision to the distance.
         """
 
+    def scaled_inverse_w(self):
+        """(G, h, g): the scaled inverse ``W(t) = c(t) M(t)^-1 = [[G, h], [0, g]]`` of this motion, or None.
+
+        Bernstein arrays, G (3, 3, n), h (3, n), g (n,) (see :func:`quadric_from_w`): the motion's own,
+        to read, never to write.  None for a motion not given by one (:class:`Affine`).
+        """
+        return None
+
     def factor(self):
         """Bernstein coefficients of the positive factor that scales this motion's quadric, or None.
 
@@ -524,6 +526,9 @@ class _WMotion(Motion):
 
     def factor(self):
         return self._w[2]
+
+    def scaled_inverse_w(self):
+        return self._w
 
     def quadric_bounded_on(self, radii, t0, t1):
         G, h, g = self._w
@@ -682,16 +687,7 @@ class LinearAffine(_WMotion):
     def __init__(self, start, end):
         self.start = _validate.array(start, (3, 4), "start")
         self.end = _validate.array(end, (3, 4), "end")
-        Lc = _linear_bernstein(self.start[:, :3], self.end[:, :3])  # (3, 3, 2)
-        adj = np.empty((3, 3, 3))
-        for i in range(3):
-            for j in range(3):
-                r = [k for k in range(3) if k != j]
-                c = [k for k in range(3) if k != i]
-                minor = bz.add(bz.multiply(Lc[r[0], c[0]].copy(), Lc[r[1], c[1]].copy()),
-                               -bz.multiply(Lc[r[0], c[1]].copy(), Lc[r[1], c[0]].copy()))
-                adj[i, j] = minor if (i + j) % 2 == 0 else -minor
-        det = sum(bz.multiply(Lc[0, k].copy(), adj[k, 0].copy()) for k in range(3))
+        adj, det = bz.adjugate3(_linear_bernstein(self.start[:, :3], self.end[:, :3]))  # of L(t): (3, 3, 2)
         _nonvanishing(det, "start/end: the linear part L(t) becomes singular:", bernstein=True)
         super().__init__(adj, self._h(adj, np.zeros(3)), det)
 

@@ -118,22 +118,32 @@ def _det3(m00, m01, m02, m10, m11, m12, m20, m21, m22):
             + m02 * (m10 * m21 - m11 * m20))
 
 
+# Laplace expansion of a 4x4 determinant along rows 0-1: term k is sign * s_k * c_k with
+# s_k = m[0, i] m[1, j] - m[1, i] m[0, j] and its complementary minor
+# c_k = m[2, p] m[3, q] - m[3, p] m[2, q]; rows (i, j, p, q, sign), in the order summed
+_LAPLACE = ((0, 1, 2, 3, 1.0), (0, 2, 1, 3, -1.0), (0, 3, 1, 2, 1.0),
+            (1, 2, 0, 3, 1.0), (1, 3, 0, 2, -1.0), (2, 3, 0, 1, 1.0))
+
+
+@_inline
+def _det4_rows(r0, r1, r2, r3):
+    """det of the 4x4 with rows r0..r3 (4-tuples) by 2x2 minors: s0 c5 - s1 c4 + s2 c3 + s3 c2 - s4 c1 + s5 c0.
+
+    Summed left to right from -0.0 (the exact identity of +), so each rounding is that of the written sum.
+    """
+    det = -0.0
+    for i, j, p, q, sign in _LAPLACE:
+        s = r0[i] * r1[j] - r1[i] * r0[j]
+        c = r2[p] * r3[q] - r3[p] * r2[q]
+        det += sign * (s * c)
+    return det
+
+
 @_jit
 def det4(M):
     """Determinant of a 4x4 matrix by 2x2 minors."""
-    s0 = M[0, 0] * M[1, 1] - M[1, 0] * M[0, 1]
-    s1 = M[0, 0] * M[1, 2] - M[1, 0] * M[0, 2]
-    s2 = M[0, 0] * M[1, 3] - M[1, 0] * M[0, 3]
-    s3 = M[0, 1] * M[1, 2] - M[1, 1] * M[0, 2]
-    s4 = M[0, 1] * M[1, 3] - M[1, 1] * M[0, 3]
-    s5 = M[0, 2] * M[1, 3] - M[1, 2] * M[0, 3]
-    c5 = M[2, 2] * M[3, 3] - M[3, 2] * M[2, 3]
-    c4 = M[2, 1] * M[3, 3] - M[3, 1] * M[2, 3]
-    c3 = M[2, 1] * M[3, 2] - M[3, 1] * M[2, 2]
-    c2 = M[2, 0] * M[3, 3] - M[3, 0] * M[2, 3]
-    c1 = M[2, 0] * M[3, 2] - M[3, 0] * M[2, 2]
-    c0 = M[2, 0] * M[3, 1] - M[3, 0] * M[2, 1]
-    return s0 * c5 - s1 * c4 + s2 * c3 + s3 * c2 - s4 * c1 + s5 * c0
+    return _det4_rows((M[0, 0], M[0, 1], M[0, 2], M[0, 3]), (M[1, 0], M[1, 1], M[1, 2], M[1, 3]),
+                      (M[2, 0], M[2, 1], M[2, 2], M[2, 3]), (M[3, 0], M[3, 1], M[3, 2], M[3, 3]))
 
 
 @_jit
@@ -350,25 +360,35 @@ def _edot3(x, ex, y, ey):
     return _eadd(s, es, p, ep)
 
 
+@_inline
+def _eminor(m, e, top, i, j):
+    """The 2x2 minor of rows ``top``, ``top + 1`` and columns i, j of :func:`_det4e`'s ``m``, and its bound."""
+    a, b = 4 * top, 4 * top + 4
+    return _ediff(m[a + i], e[a + i], m[b + j], e[b + j], m[b + i], e[b + i], m[a + j], e[a + j])
+
+
+@_inline
+def _eterms(m, e, k, h):
+    """Laplace terms k + h of :data:`_LAPLACE`: ``sign_k s_k c_k + sign_h s_h c_h`` and its error bound."""
+    i, j, p, q, sign = _LAPLACE[k]
+    s, f = _eminor(m, e, 0, i, j)
+    c, g = _eminor(m, e, 2, p, q)
+    i, j, p, q, sign_h = _LAPLACE[h]
+    s_h, f_h = _eminor(m, e, 0, i, j)
+    c_h, g_h = _eminor(m, e, 2, p, q)
+    return _ediff(sign * s, f, c, g, -sign_h * s_h, f_h, c_h, g_h)
+
+
 @_jit
 def _det4e(m, e):
-    """det of the 4x4 ``m`` (16-tuple, row-major, entries within ``e``) by 2x2 minors, and its error bound."""
-    s0, f0 = _ediff(m[0], e[0], m[5], e[5], m[4], e[4], m[1], e[1])
-    s1, f1 = _ediff(m[0], e[0], m[6], e[6], m[4], e[4], m[2], e[2])
-    s2, f2 = _ediff(m[0], e[0], m[7], e[7], m[4], e[4], m[3], e[3])
-    s3, f3 = _ediff(m[1], e[1], m[6], e[6], m[5], e[5], m[2], e[2])
-    s4, f4 = _ediff(m[1], e[1], m[7], e[7], m[5], e[5], m[3], e[3])
-    s5, f5 = _ediff(m[2], e[2], m[7], e[7], m[6], e[6], m[3], e[3])
-    c5, g5 = _ediff(m[10], e[10], m[15], e[15], m[14], e[14], m[11], e[11])
-    c4, g4 = _ediff(m[9], e[9], m[15], e[15], m[13], e[13], m[11], e[11])
-    c3, g3 = _ediff(m[9], e[9], m[14], e[14], m[13], e[13], m[10], e[10])
-    c2, g2 = _ediff(m[8], e[8], m[15], e[15], m[12], e[12], m[11], e[11])
-    c1, g1 = _ediff(m[8], e[8], m[14], e[14], m[12], e[12], m[10], e[10])
-    c0, g0 = _ediff(m[8], e[8], m[13], e[13], m[12], e[12], m[9], e[9])
-    d, ed = _ediff(s0, f0, c5, g5, s1, f1, c4, g4)
-    p, ep = _ediff(s2, f2, c3, g3, s4, f4, c1, g1)
+    """det of the 4x4 ``m`` (16-tuple, row-major, entries within ``e``) by 2x2 minors, and its error bound.
+
+    The terms of :func:`_det4_rows`, summed as (s0 c5 - s1 c4) + (s2 c3 - s4 c1) + (s3 c2 + s5 c0).
+    """
+    d, ed = _eterms(m, e, 0, 1)
+    p, ep = _eterms(m, e, 2, 4)
     d, ed = _eadd(d, ed, p, ep)
-    p, ep = _ediff(s3, f3, c2, g2, -s5, f5, c0, g0)
+    p, ep = _eterms(m, e, 3, 5)
     return _eadd(d, ed, p, ep)
 
 
@@ -571,6 +591,19 @@ def _emul_inv_square(x, ex, r):
     return _emul(x, ex, y, ey)
 
 
+@_inline
+def _rotate_scale(cb, erb, x, ex, db):
+    """``y = rot(qb)^T x`` (cb: the columns of rot(qb), within erb; x within ex) and ``Db y``
+    (db: the three (1/r^2, bound) of B's radii): y, its bounds, Db y, its bounds, as 3-tuples."""
+    y0, f0 = _edot3(cb[0], erb, x, ex)
+    y1, f1 = _edot3(cb[1], erb, x, ex)
+    y2, f2 = _edot3(cb[2], erb, x, ex)
+    w0, k0 = _emul(db[0][0], db[0][1], y0, f0)
+    w1, k1 = _emul(db[1][0], db[1][1], y1, f1)
+    w2, k2 = _emul(db[2][0], db[2][1], y2, f2)
+    return (y0, y1, y2), (f0, f1, f2), (w0, w1, w2), (k0, k1, k2)
+
+
 @_jit
 def _pose_pair(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
     """The pair in A's frame, scaled: A, B as 16-tuples with error bounds, and the two centre tests.
@@ -603,39 +636,12 @@ def _pose_pair(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
     # columns of rot(qa), rot(qb)
     ca = ((ra[0], ra[3], ra[6]), (ra[1], ra[4], ra[7]), (ra[2], ra[5], ra[8]))
     cb = ((rb[0], rb[3], rb[6]), (rb[1], rb[4], rb[7]), (rb[2], rb[5], rb[8]))
-    # R' = rot(qb)^T rot(qa), entry (k, i) = cb[k] . ca[i]; stored by columns: Rc[i] = column i
-    r00, f00 = _edot3(cb[0], erb, ca[0], era)
-    r10, f10 = _edot3(cb[1], erb, ca[0], era)
-    r20, f20 = _edot3(cb[2], erb, ca[0], era)
-    r01, f01 = _edot3(cb[0], erb, ca[1], era)
-    r11, f11 = _edot3(cb[1], erb, ca[1], era)
-    r21, f21 = _edot3(cb[2], erb, ca[1], era)
-    r02, f02 = _edot3(cb[0], erb, ca[2], era)
-    r12, f12 = _edot3(cb[1], erb, ca[2], era)
-    r22, f22 = _edot3(cb[2], erb, ca[2], era)
-    t0, g0 = _edot3(cb[0], erb, dd, edd)
-    t1, g1 = _edot3(cb[1], erb, dd, edd)
-    t2, g2 = _edot3(cb[2], erb, dd, edd)
-    eb0, h0 = _inv_square(radii_b[0])
-    eb1, h1 = _inv_square(radii_b[1])
-    eb2, h2 = _inv_square(radii_b[2])
-    # Db R' (columns) and Db t'
-    w00, k00 = _emul(eb0, h0, r00, f00)
-    w10, k10 = _emul(eb1, h1, r10, f10)
-    w20, k20 = _emul(eb2, h2, r20, f20)
-    w01, k01 = _emul(eb0, h0, r01, f01)
-    w11, k11 = _emul(eb1, h1, r11, f11)
-    w21, k21 = _emul(eb2, h2, r21, f21)
-    w02, k02 = _emul(eb0, h0, r02, f02)
-    w12, k12 = _emul(eb1, h1, r12, f12)
-    w22, k22 = _emul(eb2, h2, r22, f22)
-    wt0, kt0 = _emul(eb0, h0, t0, g0)
-    wt1, kt1 = _emul(eb1, h1, t1, g1)
-    wt2, kt2 = _emul(eb2, h2, t2, g2)
-    R0, R1, R2, T = (r00, r10, r20), (r01, r11, r21), (r02, r12, r22), (t0, t1, t2)
-    F0, F1, F2, G = (f00, f10, f20), (f01, f11, f21), (f02, f12, f22), (g0, g1, g2)
-    W0, W1, W2, WT = (w00, w10, w20), (w01, w11, w21), (w02, w12, w22), (wt0, wt1, wt2)
-    K0, K1, K2, KT = (k00, k10, k20), (k01, k11, k21), (k02, k12, k22), (kt0, kt1, kt2)
+    # R' = rot(qb)^T rot(qa), entry (k, i) = cb[k] . ca[i], by columns R0, R1, R2; t' = T; Db R' and Db t'
+    db = (_inv_square(radii_b[0]), _inv_square(radii_b[1]), _inv_square(radii_b[2]))
+    R0, F0, W0, K0 = _rotate_scale(cb, erb, ca[0], era, db)
+    R1, F1, W1, K1 = _rotate_scale(cb, erb, ca[1], era, db)
+    R2, F2, W2, K2 = _rotate_scale(cb, erb, ca[2], era, db)
+    T, G, WT, KT = _rotate_scale(cb, erb, dd, edd, db)
     kb = np.sqrt(radii_b[0] * radii_b[1] * radii_b[2])  # |det B|^(1/4) for unit quaternions
     ka = np.sqrt(radii_a[0] * radii_a[1] * radii_a[2])
     b00, e00 = _kdot3(kb, W0, K0, R0, F0)
@@ -699,19 +705,7 @@ def _quick_det(u, a, ea, b, eb):
     m12 = u * b12
     m13 = u * b13
     m23 = u * b23
-    s0 = m00 * m11 - m01 * m01
-    s1 = m00 * m12 - m01 * m02
-    s2 = m00 * m13 - m01 * m03
-    s3 = m01 * m12 - m11 * m02
-    s4 = m01 * m13 - m11 * m03
-    s5 = m02 * m13 - m12 * m03
-    c5 = m22 * m33 - m23 * m23
-    c4 = m12 * m33 - m13 * m23
-    c3 = m12 * m23 - m13 * m22
-    c2 = m02 * m33 - m03 * m23
-    c1 = m02 * m23 - m03 * m22
-    c0 = m02 * m13 - m03 * m12
-    det = s0 * c5 - s1 * c4 + s2 * c3 + s3 * c2 - s4 * c1 + s5 * c0
+    det = _det4_rows((m00, m01, m02, m03), (m01, m11, m12, m13), (m02, m12, m22, m23), (m03, m13, m23, m33))
     r0 = abs(m00) + abs(m01) + abs(m02) + abs(m03)
     r1 = abs(m01) + abs(m11) + abs(m12) + abs(m13)
     r2 = abs(m02) + abs(m12) + abs(m22) + abs(m23)

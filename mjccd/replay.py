@@ -34,7 +34,7 @@ import time as _time
 import zipfile
 import zlib
 from contextlib import ExitStack, closing, contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 
 import numpy as np
@@ -42,14 +42,16 @@ import numpy as np
 from mjccd import interrupts, npz_stream
 from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
-from mjccd.mujoco.warnings import mujoco_warnings
-from mjccd.quadric import matrix_to_quat
+from mjccd.mujoco import adapter
+from mjccd.mujoco.adapter import ModelAdapter
+from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, geom_ellipsoids
+from mjccd.mujoco.motions import State, as_state
+from mjccd.mujoco.pairs import character_pairs
+from mjccd.scene import FrameCounters
 
 MOTIONS = ("rigid", "affine", "chain")
-BOUND_GROUP = 5  # the group mjccd.fit writes its ellipsoids to
 # filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
-COUNTER_NAMES = ("pairs", "sphere_culled", "cached_plane", "new_plane", "overlapping_t0", "solved_exactly",
-                 "colliding", "pruned", "uncertain")
+COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))
 OUTPUT_PATTERNS = ("contacts.json", "contacts.csv", "timeline.png", "frame_*.png")  # every file replay writes
 # frame intervals per chunk of compiled work (Ctrl-C and the progress bar act between chunks): a few
 # milliseconds of scene kernels; chain frames whose pairs pass the filters cost an exact solve (ms) each
@@ -70,18 +72,6 @@ class ReplayError(InputError):
 # ---------------------------------------------------------------- model and trajectory
 
 
-@dataclass
-class Bounds:
-    """The bounding ellipsoids of a model and the pairs to check."""
-
-    geom_ids: np.ndarray          # (N,) MuJoCo geom ids
-    names: list                   # (N,) geom names
-    body_names: list              # (N,) names of the bodies holding them
-    labels: list                  # (N,) body name, or geom name when the body holds several
-    radii: np.ndarray             # (N, 3)
-    pairs: np.ndarray             # (P, 2) indices into the N ellipsoids
-
-
 def _reason(exc):
     """The first line of an exception's message, or its type when it has none."""
     text = str(exc).strip()
@@ -89,72 +79,48 @@ def _reason(exc):
 
 
 def load_model(model_path):
-    """Compile an MJCF file; errors name the file, then give MuJoCo's message; its warnings go to stderr."""
-    import mujoco
-
-    path = pathlib.Path(model_path)
-    if path.is_dir():
-        raise ReplayError(f"{model_path}: is a folder, expected an MJCF model file")
-    if not path.is_file():
-        raise ReplayError(f"{model_path}: model file not found")
-    with mujoco_warnings() as warned:
-        try:
-            model = mujoco.MjModel.from_xml_path(str(path))
-        except ValueError as exc:
-            message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or "cannot compile"
-            raise ReplayError(f"{model_path}: not a valid MJCF model: {message}") from None
-    for message in warned:
-        print(f"{model_path}: MuJoCo warning: {message}", file=sys.stderr)
-    return model
+    """Compile an MJCF file (:func:`mjccd.mujoco.load_model`); errors name the file, as :class:`ReplayError`."""
+    try:
+        return adapter.load_model(pathlib.Path(model_path))
+    except InputError as exc:
+        raise ReplayError(str(exc)) from None
 
 
-def bounding_ellipsoids(model, pairs=None, source="model"):
-    """The model's bounding ellipsoids and the pairs to check (see the module docstring).
+def replay_ellipsoids(model, pairs=None, source="model"):
+    """``(ellipsoids, pairs)``: the model's bounding ellipsoids (:class:`~mjccd.mujoco.EllipsoidSet`) and the
+    (P, 2) pairs to check (see the module docstring).
 
+    ``pairs``: ellipsoid index pairs, or None for :func:`mjccd.mujoco.pairs.character_pairs`.
     ``source`` (the model file) starts the error messages.
     """
-    import mujoco
-
-    ell = model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID
-    ids = np.nonzero(ell & (model.geom_group == BOUND_GROUP))[0]
-    if len(ids) == 0:
-        ids = np.nonzero(ell)[0]
-    if len(ids) < 2:
-        raise ReplayError(f"{source}: needs at least two ellipsoid geoms to check, found {len(ids)}")
-    names = [model.geom(g).name or f"geom{g}" for g in ids]
-    radii = model.geom_size[ids].copy()
+    try:
+        ellipsoids = geom_ellipsoids(model, any_group=True)
+    except InputError as exc:
+        raise ReplayError(f"{source}: {exc}") from None
+    if len(ellipsoids) < 2:
+        raise ReplayError(f"{source}: needs at least two ellipsoid geoms to check, found {len(ellipsoids)}")
     low, high = RADIUS_RANGE
-    bad = np.nonzero(~np.all((radii >= low) & (radii <= high), axis=1))[0]  # NaN fails too
+    bad = np.flatnonzero(~np.all((ellipsoids.radii >= low) & (ellipsoids.radii <= high), axis=1))
     if len(bad):
-        raise ReplayError(f"{source}: ellipsoid {names[bad[0]]!r} has semi-axes {radii[bad[0]].tolist()}; "
-                          f"replay supports {low:g} to {high:g} m")
-    bodies = model.geom_bodyid[ids]
-    body_names = [model.body(b).name or f"body{b}" for b in bodies]
+        raise ReplayError(f"{source}: ellipsoid {ellipsoids.geoms[bad[0]]!r} has semi-axes "
+                          f"{ellipsoids.radii[bad[0]].tolist()}; replay supports {low:g} to {high:g} m")
     if pairs is None:
-        top = model.body_rootid[bodies]
-        moving = _moves(model, bodies)
-        pairs = [(a, b) for a in range(len(ids)) for b in range(a + 1, len(ids))
-                 if top[a] != top[b] and (moving[a] or moving[b])]
-        if not pairs:
+        pairs = character_pairs(model, ellipsoids)
+        if not len(pairs):
             raise ReplayError(f"{source}: no pair of ellipsoids under different top-level bodies that moves")
-    labels = [body if body_names.count(body) == 1 else name.removesuffix("_bound")
-              for name, body in zip(names, body_names)]
-    pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
-    if pairs.size and (pairs.min() < 0 or pairs.max() >= len(ids) or np.any(pairs[:, 0] == pairs[:, 1])):
-        raise ReplayError(f"pairs: indices must be distinct and within 0..{len(ids) - 1}")
-    return Bounds(ids, names, body_names, labels, radii, pairs)
+    try:
+        pairs = adapter.checked_pairs(pairs, len(ellipsoids))
+    except InputError as exc:
+        raise ReplayError(str(exc)) from None
+    return ellipsoids, pairs
 
 
-def _moves(model, bodies):
-    """Whether each body has a joint on its path to the world."""
-    out = []
-    for b in bodies:
-        moving = False
-        while b > 0 and not moving:
-            moving = model.body_jntnum[b] > 0
-            b = model.body_parentid[b]
-        out.append(bool(moving))
-    return np.array(out)
+def ellipsoid_labels(ellipsoids):
+    """A short label per ellipsoid for reports: its body's name, or its geom's (less ``_bound``) when the body
+    holds several."""
+    bodies = ellipsoids.bodies
+    return [body if bodies.count(body) == 1 else geom.removesuffix("_bound")
+            for geom, body in zip(ellipsoids.geoms, bodies)]
 
 
 def load_trajectory(traj, model):
@@ -306,7 +272,7 @@ class Trajectory:
         if qpos_problem is None and not self.has_time:
             check = _TimeCheck(self.source)
             for first in range(0, frames, self.read_frames):
-                check.values(self._computed_times(first, min(first + self.read_frames, frames)), first)
+                check.rows(self._computed_times(first, min(first + self.read_frames, frames)), first)
             time_problem = check.finish()
         problem = qpos_problem or time_problem
         if problem:
@@ -338,7 +304,7 @@ class Trajectory:
         check = _TimeCheck(self.source)
         first = 0
         for values in member.rows(self.read_frames):
-            check.values(np.ascontiguousarray(values, dtype=np.float64), first)
+            check.rows(np.ascontiguousarray(values, dtype=np.float64), first)
             first += len(values)
         return check.finish()
 
@@ -379,7 +345,7 @@ class Trajectory:
                         raise self._changed()
                     time = np.ascontiguousarray(time, dtype=np.float64)
                 qpos_check.rows(qpos, first)
-                time_check.values(time, first)
+                time_check.rows(time, first)
                 problem = qpos_check.finish() or time_check.finish()
                 if problem:
                     raise ReplayError(problem)
@@ -453,13 +419,19 @@ def check_qpos(values, model, source, field="qpos"):
     """(T >= 2, nq) joint positions as float64; errors name ``source``, ``field``, the frame and the joint."""
     qpos = _real_array(values, source, field)
     problem = _qpos_shape_problem(qpos.shape, model, source, field)
-    if problem is None:
-        check = _QposCheck(model, source, field)
-        check.rows(qpos, 0)
-        problem = check.finish()
     if problem:
         raise ReplayError(problem)
-    return qpos
+    return _checked_whole(_QposCheck(model, source, field), qpos)
+
+
+def _checked_whole(check, values):
+    """``values``, all of them fed to a chunk check (:class:`_QposCheck`, :class:`_TimeCheck`) at once; its
+    problem raised."""
+    check.rows(values, 0)
+    problem = check.finish()
+    if problem:
+        raise ReplayError(problem)
+    return values
 
 
 class _QposCheck:
@@ -536,12 +508,7 @@ def _check_time(values, n, source):
     time = _real_array(values, source, "time")
     if time.shape != (n,):
         raise ReplayError(f"{source}: time must have shape ({n},), got {time.shape}")
-    check = _TimeCheck(source)
-    check.values(time, 0)
-    problem = check.finish()
-    if problem:
-        raise ReplayError(problem)
-    return time
+    return _checked_whole(_TimeCheck(source), time)
 
 
 class _TimeCheck:
@@ -556,7 +523,7 @@ class _TimeCheck:
         self.bad = self.back = None
         self.last = None   # the last time fed
 
-    def values(self, time, first):
+    def rows(self, time, first):
         """Check the float64 times ``time`` (r,) of frames ``first`` to ``first + r - 1``."""
         if self.bad is None:
             bad = np.nonzero(~(np.abs(time) <= TIME_LIMIT))[0]
@@ -576,225 +543,6 @@ class _TimeCheck:
         return self.bad or self.back
 
 
-def check_chain_range(qpos, model, geom_ids, source, field="qpos"):
-    """Refuse hinge angles outside (-pi, pi) on the chains of ``geom_ids``: the chain motion needs them inside."""
-    import mujoco
-
-    from mjccd.mujoco.motions import body_path
-
-    bodies = {b for g in geom_ids for b in body_path(model, model.geom_bodyid[g])}
-    for j in range(model.njnt):
-        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE or model.jnt_bodyid[j] not in bodies:
-            continue
-        a = model.jnt_qposadr[j]
-        out = np.nonzero(np.abs(qpos[:, a]) >= math.pi)[0]
-        if len(out):
-            raise ReplayError(f"{source}: {field}[{out[0]}, {a}] = {qpos[out[0], a]:g} (frame {out[0]}): hinge "
-                              f"{_joint_name(model, j)!r} must stay within (-pi, pi) for the chain motion")
-
-
-def geom_poses(model, qpos, geom_ids):
-    """World positions (T, N, 3) and unit quaternions (T, N, 4) of the geoms at every frame."""
-    import mujoco
-
-    data = mujoco.MjData(model)
-    T, N = qpos.shape[0], len(geom_ids)
-    pos = np.empty((T, N, 3))
-    mats = np.empty((T, N, 9))
-    for k in range(T):
-        data.qpos[:] = qpos[k]
-        mujoco.mj_kinematics(model, data)
-        pos[k] = data.geom_xpos[geom_ids]
-        mats[k] = data.geom_xmat[geom_ids]
-    return pos, matrix_to_quat(mats.reshape(T, N, 3, 3))
-
-
-# ---------------------------------------------------------------- one frame
-
-
-@dataclass
-class FrameContacts:
-    """Pair results of one frame interval: arrays over the checked pairs."""
-
-    status: np.ndarray    # (P,) 1 separate, 0 touching, -1 overlapping at the frame start
-    toi: np.ndarray       # (P,) first contact in [0, 1], -1 when none
-    point: np.ndarray     # (P, 3)
-    normal: np.ndarray    # (P, 3)
-
-
-class FrameChecker:
-    """Checks all pairs over one frame interval; the one place the per-frame CCD runs.
-
-    Rigid and affine motions go through :class:`mjccd.scene.Scene` (moving
-    spheres, cached and new separating planes, then the exact solver); the
-    chain motion decides the pairs with :class:`mjccd.chain_bounds.ChainFilter`
-    (sweep spheres, separating planes of the swept bodies, the static overlap
-    test at the frame start) and solves the rest with :func:`mjccd.first_contact`
-    on each ellipsoid's :class:`mjccd.Chain`; ``chain_filters=False`` solves
-    every pair (the filters never change an answer: the tests compare both).
-    """
-
-    def __init__(self, bounds, motion, model=None, chain_filters=True):
-        self.bounds = bounds
-        self.motion = motion
-        self.model = model
-        self.counters = dict.fromkeys(COUNTER_NAMES, 0)
-        self.chain_filter = None
-        if motion != "chain":
-            from mjccd.scene import Scene
-
-            self.scene = Scene(bounds.radii, pairs=bounds.pairs, motion=motion)
-        elif chain_filters:
-            from mjccd.chain_bounds import ChainFilter
-
-            self.chain_filter = ChainFilter(chain_program(model, bounds.geom_ids), bounds.radii, bounds.pairs)
-        P = len(bounds.pairs)
-        self._status = np.ones(P, dtype=np.int64)
-        self._toi = np.full(P, -1.0)
-        self._point = np.zeros((P, 3))
-        self._normal = np.zeros((P, 3))
-
-    def step(self, pos0, quat0, pos1, quat1, qpos0=None, qpos1=None):
-        """Results for the interval from poses (N, 3)/(N, 4) at its start to those at its end."""
-        self._status[:] = 1
-        self._toi[:] = -1.0
-        if self.motion == "chain":
-            self._chain_step(qpos0, qpos1)
-        else:
-            res = self.scene.step(np.concatenate([pos0, quat0], axis=1), np.concatenate([pos1, quat1], axis=1),
-                                  all_pairs=True)
-            for c in res.contacts:
-                if c.certainty != "certified" and c.point is None and c.bracket[1] > 0.0:
-                    self._toi[c.pair] = c.time  # uncertain: a possible contact from the bracket's start
-                    self._point[c.pair] = self._normal[c.pair] = 0.0
-                elif c.point is None:
-                    self._status[c.pair], self._toi[c.pair] = -1, 0.0
-                else:
-                    self._toi[c.pair] = c.time
-                    self._point[c.pair], self._normal[c.pair] = c.point, c.normal
-            for name in COUNTER_NAMES:
-                self.counters[name] += getattr(res.counters, name)
-        return FrameContacts(self._status, self._toi, self._point, self._normal)
-
-    def _chain_step(self, qpos0, qpos1):
-        from mjccd import Ellipsoid, first_contact
-
-        radii = self.bounds.radii
-        pairs = self.bounds.pairs
-        self.counters["pairs"] += len(pairs)
-        if self.chain_filter is None:
-            todo = range(len(pairs))
-        else:
-            from mjccd import chain_bounds as cb
-
-            outcome = self.chain_filter.step(qpos0, qpos1)
-            counts = self.chain_filter.counters
-            self.counters["sphere_culled"] += int(counts[cb.SPHERE])
-            self.counters["cached_plane"] += int(counts[cb.CACHED_PLANE])
-            self.counters["new_plane"] += int(counts[cb.NEW_PLANE])
-            overlap = np.flatnonzero(outcome == cb.OVERLAP_T0)  # as the rigid path: colliding at t = 0, no solve
-            self._status[overlap], self._toi[overlap] = -1, 0.0
-            self.counters["overlapping_t0"] += len(overlap)
-            self.counters["colliding"] += len(overlap)
-            todo = np.flatnonzero(outcome == cb.EXACT).tolist()
-        motions = {}  # built only for the ellipsoids of pairs left to the exact solver
-        for k in todo:
-            i, j = pairs[k]
-            for e in (i, j):
-                if e not in motions:
-                    motions[e] = chain_motion(self.model, self.bounds.geom_ids[e], qpos0, qpos1)
-            self.counters["solved_exactly"] += 1
-            c = first_contact(Ellipsoid(radii[i]), motions[i], Ellipsoid(radii[j]), motions[j])
-            if c is None:
-                continue
-            if c.certainty != "certified":
-                self.counters["uncertain"] += 1
-            if c.certainty != "certified" and c.point is None and c.status_at_start == "separate":
-                self._toi[k] = c.time  # uncertain: a possible contact from the bracket's start (not colliding)
-                self._point[k] = self._normal[k] = 0.0
-                continue
-            self.counters["colliding"] += 1
-            if c.point is None:
-                self._status[k], self._toi[k] = -1, 0.0
-                self.counters["overlapping_t0"] += 1
-            else:
-                self._toi[k] = c.time
-                self._point[k], self._normal[k] = c.point, c.normal
-
-
-def chain_motion(model, geom_id, qpos0, qpos1):
-    """The exact articulated motion (:class:`mjccd.Chain`) of a geom between two qpos."""
-    import mujoco
-
-    from mjccd import Ball, Chain, Fixed, Free, Hinge, Slide
-    from mjccd.mujoco.motions import body_path
-
-    elements = []
-    for b in reversed(body_path(model, model.geom_bodyid[geom_id])):
-        joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
-        if not any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in joints):
-            elements.append(Fixed(model.body_pos[b], model.body_quat[b]))
-        for j in joints:
-            a = model.jnt_qposadr[j]
-            kind = model.jnt_type[j]
-            name = model.joint(j).name or f"joint{j}"
-            if kind == mujoco.mjtJoint.mjJNT_FREE:
-                elements.append(Free(qpos0[a:a + 3], qpos0[a + 3:a + 7], qpos1[a:a + 3], qpos1[a + 3:a + 7]))
-                continue
-            anchor = model.jnt_pos[j]
-            shifted = bool(np.any(anchor != 0.0))
-            if shifted:
-                elements.append(Fixed(anchor))
-            if kind == mujoco.mjtJoint.mjJNT_BALL:
-                elements.append(Ball(qpos0[a:a + 4], qpos1[a:a + 4]))
-            elif kind == mujoco.mjtJoint.mjJNT_HINGE:
-                if max(abs(qpos0[a]), abs(qpos1[a])) >= math.pi:
-                    raise ReplayError(f"qpos: hinge {name!r} must stay within (-pi, pi) for the chain motion")
-                elements.append(Hinge(model.jnt_axis[j], qpos0[a], qpos1[a]))
-            else:
-                elements.append(Slide(model.jnt_axis[j], qpos0[a], qpos1[a]))
-            if shifted:
-                elements.append(Fixed(-anchor))
-    elements.append(Fixed(model.geom_pos[geom_id], model.geom_quat[geom_id]))
-    return Chain(elements)
-
-
-def chain_program(model, geom_ids):
-    """The chains of :func:`chain_motion` for ``geom_ids`` as one :class:`mjccd.chain_bounds.ChainProgram`.
-
-    The same elements in the same order, with the joint values read from qpos
-    (``adr`` = the joint's qpos address), for the chain-motion filters.
-    """
-    import mujoco
-
-    from mjccd import chain_bounds as cb
-    from mjccd.mujoco.motions import body_path
-
-    kinds = {int(mujoco.mjtJoint.mjJNT_BALL): cb.BALL, int(mujoco.mjtJoint.mjJNT_HINGE): cb.HINGE,
-             int(mujoco.mjtJoint.mjJNT_SLIDE): cb.SLIDE}
-    build = cb.ProgramBuilder()
-    for geom_id in geom_ids:
-        for b in reversed(body_path(model, model.geom_bodyid[geom_id])):
-            joints = range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b])
-            if not any(model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE for j in joints):
-                build.fixed(model.body_pos[b], model.body_quat[b])
-            for j in joints:
-                a = int(model.jnt_qposadr[j])
-                if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-                    build.joint(cb.FREE, a)
-                    continue
-                anchor = model.jnt_pos[j]
-                shifted = bool(np.any(anchor != 0.0))
-                if shifted:
-                    build.fixed(anchor)
-                build.joint(kinds[int(model.jnt_type[j])], a, model.jnt_axis[j])
-                if shifted:
-                    build.fixed(-anchor)
-        build.fixed(model.geom_pos[geom_id], model.geom_quat[geom_id])
-        build.end()
-    return build.program()
-
-
 # ---------------------------------------------------------------- replay
 
 
@@ -802,8 +550,10 @@ def chain_program(model, geom_ids):
 class ReplayResult:
     """Everything a replay found.
 
-    ``contacts`` are the first contacts (dicts, as in ``contacts.json``).  ``overlaps`` maps a
-    pair (an index into ``bounds.pairs``) to its runs of frame intervals in contact (or
+    ``ellipsoids`` (:class:`~mjccd.mujoco.EllipsoidSet`) are the model's bounding ellipsoids,
+    ``pairs`` (P, 2) the pairs checked and ``labels`` a short name per ellipsoid.  ``contacts`` are
+    the first contacts (dicts, as in ``contacts.json``).  ``overlaps`` maps a pair (an index into
+    ``pairs``) to its runs of frame intervals in contact (or
     possibly in contact: an uncertain result), each ``(first, last, time[first],
     time[last + 1])``, in order; ``frames_in_contact`` counts the frame intervals with any pair
     in contact; ``time_range`` is the times of the first and the last frame.
@@ -817,7 +567,9 @@ class ReplayResult:
     trajectory: str
     motion: str
     n_frames: int
-    bounds: Bounds
+    ellipsoids: EllipsoidSet
+    pairs: np.ndarray
+    labels: list
     contacts: list = field(default_factory=list)
     overlaps: dict = field(default_factory=dict)
     frames_in_contact: int = 0
@@ -835,7 +587,7 @@ class ReplayResult:
     @cached_property
     def in_contact(self):
         """(T - 1, P) flags: pair p in contact during frame interval k (T - 1 by P bytes, made on first use)."""
-        flags = np.zeros((self.n_frames - 1, len(self.bounds.pairs)), dtype=bool)
+        flags = np.zeros((self.n_frames - 1, len(self.pairs)), dtype=bool)
         for p, runs in self.overlaps.items():
             for first, last, _, _ in runs:
                 flags[first:last + 1, p] = True
@@ -869,14 +621,14 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
     if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):  # before the model is loaded
         raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
     model = load_model(model_path)
-    bounds = bounding_ellipsoids(model, pairs, source=str(model_path))
+    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=str(model_path))
     trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
-    if motion == "chain":  # the chain motion's check takes the whole qpos (chain replays are short)
-        check_chain_range(trajectory.qpos(), model, bounds.geom_ids, traj)
     folder = None if out_dir is None else output_folder(out_dir, force)
-    result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, bounds, source=trajectory)
+    result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
+                          ellipsoid_labels(ellipsoids), source=trajectory)
     rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
-    _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rendered, max_rendered)
+    checker = ModelAdapter(model, ellipsoids, pairs, motion)
+    _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
     if folder is not None:
         try:
             with folder:
@@ -907,21 +659,25 @@ def output_folder(out_dir, force=False):
     return folder
 
 
-def _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rendered=None, max_rendered=0):
+def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max_rendered=0):
     """Kinematics and the per-frame checks, chunk by chunk of frames read from ``trajectory``; fills ``result``.
 
+    ``checker`` is the :class:`~mjccd.mujoco.ModelAdapter` of the model, its ellipsoids and pairs.
     The chunks run inside :func:`mjccd.interrupts.deferred`: a Ctrl-C raises
     KeyboardInterrupt between two chunks, never inside compiled code.  The
-    frame checker (and its plane cache) carries over from chunk to chunk, so
+    checker (and its plane caches) carries over from chunk to chunk, so
     the results do not depend on ``chunk_frames`` (nor on how many frames the
     trajectory reads at a time).  ``rendered`` (a dict) receives the qpos rows,
     by frame, of both ends of the first ``max_rendered`` intervals with a first
     contact: what :func:`render_frames` draws.
     """
-    warm_up(motion)  # the first compile (or cache load) is not part of the timing
-    checker = FrameChecker(bounds, motion, model)
+    warm_up(checker.motion)  # the first compile (or cache load) is not part of the timing
+    model = checker.model
+    mocap = model.body_mocapid >= 0
+    mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
+    counters = dict.fromkeys(COUNTER_NAMES, 0)
     n = trajectory.n_frames - 1
-    overlaps = _Overlaps(len(bounds.pairs))
+    overlaps = _Overlaps(len(result.pairs))
     t_first = t_last = None
     t_kin = t_ccd = 0.0
     bar = None
@@ -936,15 +692,22 @@ def _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rend
                 t_first = time[0] if t_first is None else t_first
                 t_last = time[-1]
                 start = _time.perf_counter()
-                pos, quat = geom_poses(model, qpos, bounds.geom_ids)
-                _check_centres(pos, first, bounds, result)
+                poses = checker.qpos_poses(qpos)
+                _check_centres(poses, first, result)
                 t_kin += _time.perf_counter() - start
                 start = _time.perf_counter()
-                flags = np.empty((stop - first, len(bounds.pairs)), dtype=bool)
+                flags = np.zeros((stop - first, len(result.pairs)), dtype=bool)
+                states = [State(q, mocap_pos, mocap_quat, float(t)) for q, t in zip(qpos, time)]
                 for i in range(stop - first):
-                    fc = checker.step(pos[i], quat[i], pos[i + 1], quat[i + 1], qpos[i], qpos[i + 1])
+                    try:
+                        report = checker.check(states[i], states[i + 1], poses=(poses[i], poses[i + 1]),
+                                               all_pairs=True)
+                    except InputError as exc:
+                        raise ReplayError(f"{result.trajectory}: frame {first + i}: {exc}") from None
+                    for name, v in report.counters.items():
+                        counters[name] += v
                     found = len(result.contacts)
-                    _record(result, first + i, fc, time[i], time[i + 1], flags[i])
+                    _record(result, first + i, report, time[i], time[i + 1], flags[i])
                     if rendered is not None and len(result.contacts) > found and len(rendered) < 2 * max_rendered:
                         rendered[first + i], rendered[first + i + 1] = qpos[i].copy(), qpos[i + 1].copy()
                 overlaps.add(first, flags, time)
@@ -958,18 +721,18 @@ def _run(model, trajectory, bounds, motion, result, progress, chunk_frames, rend
     overlaps.close(n, t_last)
     result.overlaps, result.frames_in_contact = overlaps.runs, overlaps.frames
     result.time_range = (float(t_first), float(t_last))
-    result.counters = {name: int(v) for name, v in checker.counters.items()}
+    result.counters = {name: int(v) for name, v in counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
                      "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
 
 
-def _check_centres(pos, first, bounds, result):
+def _check_centres(poses, first, result):
     """Refuse ellipsoid centres beyond :data:`COORDINATE_LIMIT` (say, a huge body offset in the model)."""
-    bad = np.argwhere(~np.all(np.abs(pos) <= COORDINATE_LIMIT, axis=2))
+    bad = np.argwhere(~np.all(np.abs(poses[:, :, :3]) <= COORDINATE_LIMIT, axis=2))
     if len(bad):
         k, i = bad[0]
-        raise ReplayError(f"{result.trajectory}: frame {first + k}: ellipsoid {bounds.names[i]!r} of {result.model} "
-                          f"is at {pos[k, i].tolist()}, beyond ±{COORDINATE_LIMIT:g} m")
+        raise ReplayError(f"{result.trajectory}: frame {first + k}: ellipsoid {result.ellipsoids.geoms[i]!r} of "
+                          f"{result.model} is at {poses[k, i, :3].tolist()}, beyond ±{COORDINATE_LIMIT:g} m")
 
 
 def _windows(trajectory, size):
@@ -1027,19 +790,28 @@ class _Overlaps:
             self.start[p] = -1
 
 
-def _record(result, k, fc, t0, t1, flags):
-    """Add the first contacts of interval k (frame times ``t0`` to ``t1``) to ``result``, its contact flags to ``flags``."""
-    bounds = result.bounds
-    flags[:] = (fc.status != 1) | (fc.toi >= 0.0)
+def _record(result, k, report, t0, t1, flags):
+    """Add the first contacts of interval k (frame times ``t0`` to ``t1``; ``report``: its
+    :class:`~mjccd.mujoco.StepReport` of every pair) to ``result``, its contact flags to ``flags``.
+
+    A pair is in contact when it touches or overlaps at the start, collides, or may collide (an
+    uncertain answer); a first contact is a contact of a pair separate at the start (an uncertain one
+    at the start of its bracket, with a zero point and normal).
+    """
+    ell, labels = result.ellipsoids, result.labels
     dt = t1 - t0
-    for p in np.nonzero((fc.status == 1) & (fc.toi >= 0.0))[0]:
-        i, j = bounds.pairs[p]
+    for c in sorted(report.contacts, key=lambda c: c.pair):
+        flags[c.pair] = True
+        if c.status_at_start != "separate":
+            continue
+        i, j = c.ellipsoids
+        none = (0.0, 0.0, 0.0)
         result.contacts.append({
-            "frame": int(k), "toi": float(fc.toi[p]), "time": float(t0 + fc.toi[p] * dt),
-            "ellipsoids": [bounds.names[i], bounds.names[j]],
-            "bodies": [bounds.body_names[i], bounds.body_names[j]],
-            "labels": [bounds.labels[i], bounds.labels[j]],
-            "point": [float(x) for x in fc.point[p]], "normal": [float(x) for x in fc.normal[p]]})
+            "frame": int(k), "toi": float(c.fraction), "time": float(t0 + c.fraction * dt),
+            "ellipsoids": [ell.geoms[i], ell.geoms[j]], "bodies": [ell.bodies[i], ell.bodies[j]],
+            "labels": [labels[i], labels[j]],
+            "point": [float(x) for x in (none if c.point is None else c.point)],
+            "normal": [float(x) for x in (none if c.normal is None else c.normal)]})
 
 
 def warm_up(motion="rigid"):
@@ -1062,32 +834,35 @@ def warm_up(motion="rigid"):
     Scene([[1.0, 0.5, 0.5]] * 2, motion=motion).step(poses0, poses1, all_pairs=True)
 
 
-def interval_table(model, bounds, qpos0, qpos1, *, repeat=3):
+def interval_table(checker, qpos0, qpos1, *, repeat=3):
     """All collision intervals of every pair over one chain-motion segment (thesis Table 6 style).
 
     Each row: the pair, the motion degree (largest degree in t of the two
     motions' scaled inverses), the degree of F in t, the time to build the pair (the
     pair's quadric polynomials and their pencil), the time to build F and solve, and the intervals
     (normalised time).  Times are the best of ``repeat`` runs, after one
-    untimed run that compiles.
+    untimed run that compiles.  ``checker``: the :class:`~mjccd.mujoco.ModelAdapter` of the model's
+    ellipsoids and pairs.
     """
     from mjccd.ccd import degree_in_t, prepare_pair, solve_balanced
 
-    motions = [chain_motion(model, g, qpos0, qpos1) for g in bounds.geom_ids]
+    model, radii = checker.model, checker.radii
+    motions = checker.chain_motions(as_state(model, qpos0, "qpos0"), as_state(model, qpos1, "qpos1"))
+    labels = ellipsoid_labels(checker.ellipsoids)
     rows = []
-    for i, j in bounds.pairs:
+    for i, j in checker.pairs:
         best_build = best_solve = math.inf
         for _ in range(repeat + 1):
             t0 = _time.perf_counter()
-            qa = motions[i].quadric_bounded_on(bounds.radii[i], 0.0, 1.0)
-            qb = motions[j].quadric_bounded_on(bounds.radii[j], 0.0, 1.0)
-            length = float(max(bounds.radii[i].max(), bounds.radii[j].max()))
+            qa = motions[i].quadric_bounded_on(radii[i], 0.0, 1.0)
+            qb = motions[j].quadric_bounded_on(radii[j], 0.0, 1.0)
+            length = float(max(radii[i].max(), radii[j].max()))
             pencil, err, _ = prepare_pair(*qa, *qb, length)
             t1 = _time.perf_counter()
             status0, intervals, _, _, _, _ = solve_balanced(*pencil, err, 1.0, False)
             t2 = _time.perf_counter()
             best_build, best_solve = min(best_build, t1 - t0), min(best_solve, t2 - t1)
-        rows.append({"pair": [bounds.labels[i], bounds.labels[j]],
+        rows.append({"pair": [labels[i], labels[j]],
                      "motion_degree": int(max(qa[0].shape[2], qb[0].shape[2]) - 1) // 2,
                      "F_degree_t": int(degree_in_t(*pencil)), "build_ms": best_build * 1e3,
                      "solve_ms": best_solve * 1e3, "status_at_start": int(status0),
@@ -1133,8 +908,8 @@ def summary(result):
     frames_hit = result.frames_in_contact
     pairs_hit = len(result.overlaps)
     lines = [
-        f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.bounds.names)} ellipsoids, "
-        f"{len(result.bounds.pairs)} pairs, motion {result.motion}",
+        f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.ellipsoids)} ellipsoids, "
+        f"{len(result.pairs)} pairs, motion {result.motion}",
         f"first contacts: {len(result.contacts)}; frames with contact: {frames_hit}; "
         f"pairs ever in contact: {pairs_hit}",
         "filter: " + ", ".join(f"{k} {v}" for k, v in c.items()),
@@ -1148,10 +923,10 @@ def _overlap_spans(result):
     """The ``in_contact`` entries of contacts.json: each pair ever in contact, in pair order, and its frame runs."""
     spans = []
     for p in sorted(result.overlaps):
-        i, j = result.bounds.pairs[p]
-        spans.append({"ellipsoids": [result.bounds.names[i], result.bounds.names[j]],
-                      "bodies": [result.bounds.body_names[i], result.bounds.body_names[j]],
-                      "labels": [result.bounds.labels[i], result.bounds.labels[j]],
+        i, j = result.pairs[p]
+        ell = result.ellipsoids
+        spans.append({"ellipsoids": [ell.geoms[i], ell.geoms[j]], "bodies": [ell.bodies[i], ell.bodies[j]],
+                      "labels": [result.labels[i], result.labels[j]],
                       "frames": [[a, b] for a, b, _, _ in result.overlaps[p]]})
     return spans
 
@@ -1159,7 +934,7 @@ def _overlap_spans(result):
 def write_reports(result, folder):
     """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`)."""
     doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
-           "frames": result.n_frames, "ellipsoids": result.bounds.names, "pairs": len(result.bounds.pairs),
+           "frames": result.n_frames, "ellipsoids": list(result.ellipsoids.geoms), "pairs": len(result.pairs),
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
     with folder.open("contacts.json", "w", encoding="utf-8") as fh:
@@ -1267,7 +1042,8 @@ def render_frames(model, qpos, result, folder, count=4):
         if len(picked) == count:
             break
     rgba = model.geom_rgba.copy()
-    name_to_geom = dict(zip(result.bounds.names, result.bounds.geom_ids))
+    name_to_geom = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) if not n.startswith("#") else int(n[1:])
+                    for n in result.ellipsoids.geoms}
     try:
         for c in picked:
             k = c["frame"]
@@ -1333,9 +1109,13 @@ def main(argv=None):
         keys = None
         if args.intervals:  # checked before the replay runs
             model = load_model(args.model)
-            bounds = bounding_ellipsoids(model, source=args.model)
+            checker = ModelAdapter(model, *replay_ellipsoids(model, source=args.model), "chain")
             keys = load_keyframes(args.traj, model)
-            check_chain_range(keys, model, bounds.geom_ids, args.traj, "keyframes")
+            for k in range(len(keys) - 1):
+                try:
+                    checker.chain_motions(as_state(model, keys[k], "keyframes"), as_state(model, keys[k + 1], "keyframes"))
+                except InputError as exc:
+                    raise ReplayError(f"{args.traj}: keyframes {k} to {k + 1}: {exc}") from None
         result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render, force=args.force)
     except (ValueError, MjccdError) as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)
@@ -1345,7 +1125,7 @@ def main(argv=None):
     if keys is not None:
         for k in range(len(keys) - 1):
             print(f"keyframe segment {k} -> {k + 1}:")
-            print(format_interval_table(interval_table(model, result.bounds, keys[k], keys[k + 1])))
+            print(format_interval_table(interval_table(checker, keys[k], keys[k + 1])))
     if args.out:
         print("wrote " + ", ".join(result.files))
     return 0

@@ -5,6 +5,9 @@ poses_t1)`` moves every ellipsoid over the frame (rigid: centre lerp and
 quaternion lerp; affine: centre and shape matrix lerp) and answers with a
 :class:`FrameResult`.  Per pair (all inside one compiled kernel):
 
+0. policy, not a filter: a pair whose relative motion over the frame stays
+   below its ``min_motion`` (:meth:`Scene.set_min_motion`) is left out
+   (outcome ``too_slow``);
 1. moving bounding spheres (:func:`mjccd.filters.sphere_entry`): free, or a
    lower bound of the contact time;
 2. the plane cached from the last frame, kept in the first ellipsoid's frame;
@@ -14,13 +17,23 @@ quaternion lerp; affine: centre and shape matrix lerp) and answers with a
    wanted, those pairs are solved in order of sphere-entry time with the
    best time so far as ``t_max``; a pair whose spheres meet only after it is
    not solved at all.
+
+The scene's arrays (its radii and pairs, the plane cache, the per-pair
+results of the last frame, the scratch of the kernels) are one
+:class:`Workspace`, which the kernels take as one argument, a
+:class:`WorkspaceRef`.
 """
-from dataclasses import dataclass
+import array
+import collections
+from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numba
 import numpy as np
 from numba.core import cgutils, types
-from numba.extending import intrinsic
+from numba.experimental import structref
+from numba.core.typing.typeof import typeof_impl
+from numba.extending import intrinsic, overload
 
 from mjccd import _validate
 from mjccd import filters as fl
@@ -32,10 +45,11 @@ _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
 
 # outcome codes of a pair in one frame
-SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED, UNCERTAIN = range(8)
+SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED, UNCERTAIN, TOO_SLOW = range(9)
 OUTCOME_NAMES = ("sphere", "cached_plane", "new_plane", "overlapping_t0", "exact_free",
-                 "exact_colliding", "pruned_by_bound", "uncertain")
-N_COUNTERS = 9  # pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned, uncertain
+                 "exact_colliding", "pruned_by_bound", "uncertain", "too_slow")
+# pairs, sphere, cached plane, new plane, overlapping t0, solved, colliding, pruned, uncertain, too slow
+N_COUNTERS = 10
 
 
 @intrinsic
@@ -71,6 +85,172 @@ def _borrow(typingctx, arr):
 def read_ticks():
     """The cycle counter, readable from Python (to calibrate :class:`RunResult` ticks)."""
     return _ticks()
+
+
+# ---------------------------------------------------------------- workspace
+
+
+class Workspace(NamedTuple):
+    """The named arrays of a :class:`Scene`, shared by its Python layer and its compiled kernels.
+
+    N ellipsoids, P pairs.  The kernels write the per-pair results and the
+    plane cache in place; nothing here is reallocated while the scene lives.
+    """
+
+    radii: np.ndarray       # (N, 3) semi-axes
+    rmax: np.ndarray        # (N,) largest semi-axis (radius of the bounding sphere)
+    pairs: np.ndarray       # (P, 2) int64 ellipsoid indices
+    min_motion: np.ndarray  # (P,) relative motion over a frame below which a pair is left out (0: never)
+    affine: bool            # the motion model: affine (True) or rigid (False)
+    plane_cache: bool       # keep each pair's separating plane for the next frame
+    cache_n: np.ndarray     # (P, 3) cached plane normal, in the first ellipsoid's frame
+    cache_kind: np.ndarray  # (P,) int8 witness variant of the cached plane, 0 when none
+    p0: np.ndarray          # (N, 3) positions at the start of the frame
+    q0: np.ndarray          # (N, 4) unit quaternions at the start
+    p1: np.ndarray          # (N, 3) positions at the end
+    q1: np.ndarray          # (N, 4) unit quaternions at the end, as given (any sign)
+    outcome: np.ndarray     # (P,) int8 outcome code of the last frame (OUTCOME_NAMES)
+    entry: np.ndarray       # (P,) sphere-entry time (-1: the spheres never meet or the pair was left out)
+    times: np.ndarray       # (P,) first contact (-1: none found), the bracket's low end when uncertain
+    times_hi: np.ndarray    # (P,) the bracket's high end (UNCERTAIN pairs only)
+    points: np.ndarray      # (P, 3) touching point of the first contact (world)
+    normals: np.ndarray     # (P, 3) unit normal out of the first ellipsoid (world)
+    ticks: np.ndarray       # (P,) int64 CPU cycles per pair (timed runs only)
+    counters: np.ndarray    # (N_COUNTERS,) int64, in the order of FrameCounters
+    q1_aligned: np.ndarray  # (N, 4) scratch: q1 on the side of q0
+    S: np.ndarray           # (N, 3, 3, 3 | 5) scratch: inverse shape polynomials (filters.support_*)
+    den: np.ndarray         # (N, 5) scratch: their denominators
+    R0: np.ndarray          # (N, 3, 3) scratch: rotations at t = 0
+    R1: np.ndarray          # (N, 3, 3) scratch: rotations at t = 1
+    work: np.ndarray        # filters.WORK_SHAPE scratch of the witness kernels
+    scratch: np.ndarray     # (4, 3) scratch: the centres of one pair
+    cand: np.ndarray        # (P,) int64 scratch: the pairs left for the exact solver
+    ready: np.ndarray       # (N,) bool scratch: per-ellipsoid data prepared in this frame
+    aff_scratch: np.ndarray  # (8, 3, 3) scratch of filters.support_affine
+
+
+def new_workspace(radii, pairs, affine, plane_cache):
+    """A :class:`Workspace` for (N, 3) ``radii`` and (P, 2) int64 ``pairs`` (both already validated)."""
+    n, npairs = len(radii), len(pairs)
+    radii = np.ascontiguousarray(radii, dtype=np.float64)
+    return Workspace(radii, np.ascontiguousarray(radii.max(axis=1)) if n else np.empty(0),
+                     np.ascontiguousarray(pairs, dtype=np.int64), np.zeros(npairs), bool(affine), bool(plane_cache),
+                     np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int8),
+                     np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)), np.zeros((n, 4)),
+                     np.zeros(npairs, dtype=np.int8), np.zeros(npairs), np.zeros(npairs), np.zeros(npairs),
+                     np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
+                     np.zeros(N_COUNTERS, dtype=np.int64),
+                     np.zeros((n, 4)), np.zeros((n, 3, 3, 5 if affine else 3)), np.zeros((n, 5)),
+                     np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros(fl.WORK_SHAPE), np.zeros((4, 3)),
+                     np.zeros(npairs, dtype=np.int64), np.zeros(n, dtype=np.bool_), np.zeros((8, 3, 3)))
+
+
+@structref.register
+class _WorkspaceRefType(types.StructRef):
+    """Numba type of :class:`WorkspaceRef`."""
+
+    def preprocess_fields(self, members):
+        return tuple((name, types.unliteral(t)) for name, t in members)
+
+
+class WorkspaceRef(array.array):
+    """A :class:`Workspace` as one argument of a compiled kernel: ``ref.arrays`` is the workspace.
+
+    Numba passes a tuple of arrays to compiled code array by array (about
+    0.1 µs each for a named tuple); a reference to a compiled structure
+    holding the tuple (a numba ``StructRef``) crosses in constant time.  Python
+    reads the same arrays through ``arrays``.  Made by :func:`workspace_ref`.
+
+    Why an (empty) ``array.array``: numba's dispatcher types an argument in C
+    from a fingerprint of it, cached, when it can compute one; for an object
+    with a buffer its fingerprint includes its Python type, so a reference
+    costs about as much to pass as one array.  A plain proxy object has no
+    fingerprint and is typed by a call back into Python on every call (about
+    0.4 µs, a tenth of a guarded MuJoCo step).
+    """
+
+    __eq__, __ne__, __hash__ = object.__eq__, object.__ne__, object.__hash__  # an identity, not an empty array
+
+    def __new__(cls, *args):
+        return super().__new__(cls, "b")
+
+    def __bool__(self):
+        return True
+
+    def __repr__(self):
+        return f"<WorkspaceRef of {len(self.arrays.radii)} ellipsoids, {len(self.arrays.pairs)} pairs>"
+
+    @classmethod
+    def _numba_box_(cls, ty, mi):
+        """The object numba gives back for a compiled reference (see :func:`numba.experimental.structref.define_boxing`)."""
+        ref = cls()
+        ref._type, ref._meminfo = ty, mi
+        return ref
+
+
+structref.define_boxing(_WorkspaceRefType, WorkspaceRef)
+_WORKSPACE_REF = _WorkspaceRefType([("arrays", numba.typeof(new_workspace(np.ones((1, 3)), np.zeros((1, 2)),
+                                                                          False, True)))])
+# every WorkspaceRef has this one type (workspace_ref checks that the arrays fit it): read in C on a cache miss
+WorkspaceRef._numba_type_ = _WORKSPACE_REF
+typeof_impl.register(WorkspaceRef)(lambda ref, c: _WORKSPACE_REF)  # before the generic typing of buffers
+
+
+@intrinsic
+def _field_of(typingctx, ref, name):
+    """``ref.arrays.<name>`` read in place, an array borrowed as :func:`_borrow` makes it."""
+    if not isinstance(name, types.StringLiteral):
+        return None
+    index = Workspace._fields.index(name.literal_value)
+    typ = ref.field_dict["arrays"][index]
+
+    def codegen(context, builder, signature, args):
+        ref_type = signature.args[0]
+        meminfo = cgutils.create_struct_proxy(ref_type)(context, builder, value=args[0]).meminfo
+        payload = ref_type.get_data_type()
+        data = builder.bitcast(context.nrt.meminfo_data(builder, meminfo),
+                               context.data_model_manager[payload].get_value_type().as_pointer())
+        value = builder.extract_value(cgutils.create_struct_proxy(payload)(context, builder, ref=data).arrays, index)
+        if not isinstance(typ, types.Array):
+            return value
+        src = context.make_array(typ)(context, builder, value)
+        out = context.make_array(typ)(context, builder)
+        context.populate_array(out, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize,
+                               meminfo=None)
+        return out._getvalue()
+    return typ(ref, name), codegen
+
+
+def field(ref, name):
+    """The array (or flag) ``name`` of a :class:`WorkspaceRef`'s workspace: ``ref.arrays.<name>``.
+
+    In compiled code it is read in place, without counting a reference (reading
+    ``ref.arrays`` would count one to each of its thirty arrays), so it must
+    not outlive the call, as :func:`_borrow`'s views.
+    """
+    return getattr(ref.arrays, name)
+
+
+@overload(field, jit_options={"cache": True})
+def _field_compiled(ref, name):
+    return lambda ref, name: _field_of(ref, name)
+
+
+@_jit
+def _new_ref(arrays):
+    ref = structref.new(_WORKSPACE_REF)
+    ref.arrays = arrays
+    return ref
+
+
+def workspace_ref(arrays):
+    """The :class:`WorkspaceRef` of a :class:`Workspace` (its arrays shared, not copied)."""
+    if numba.typeof(arrays) != _WORKSPACE_REF.field_dict["arrays"]:
+        raise InputError(f"arrays: expected a Workspace of C-contiguous arrays as new_workspace makes it, "
+                         f"got {numba.typeof(arrays)}")
+    ref = _new_ref(arrays)
+    ref.arrays = arrays
+    return ref
 
 
 # ---------------------------------------------------------------- kernels
@@ -177,38 +357,31 @@ def _new_plane(i, j, radii, p0, q0, p1, q1, S, den, R0, R1, cache_n, cache_kind,
     return EXACT_FREE
 
 
-@_jit
-def workspace(radii, npairs, affine):
-    """Scratch arrays of :func:`step_kernel`, allocated once per run (``rmax``: the largest semi-axes)."""
-    n = radii.shape[0]
-    rmax = np.empty(n)
-    for i in range(n):
-        rmax[i] = max(radii[i, 0], radii[i, 1], radii[i, 2])
-    return (np.empty((n, 4)), rmax, np.empty((n, 3, 3, 5 if affine else 3)), np.empty((n, 5)),
-            np.empty((n, 3, 3)), np.empty((n, 3, 3)), np.empty(fl.WORK_SHAPE), np.empty((4, 3)),
-            np.empty(npairs, dtype=np.int64), np.empty(n, dtype=np.bool_), np.empty((8, 3, 3)))
-
-
-@_jit
+@_inline
 def _split_poses(poses, p, q):
-    """Positions of (N, 7) poses into p and normalised quaternions into q.
+    """Positions of (N, 7) poses into p and normalised quaternions into q: True when that is the whole answer.
 
-    Returns the first row holding NaN, infinity or a zero quaternion (its
-    error is then left to :func:`mjccd._validate.pose_array`), or -1.
+    False when a row holds NaN, infinity or a zero quaternion, or when a
+    quaternion's squared norm overflows (it comes out as a zero row, so the
+    unit rows' squares do not sum to N): such poses are left to
+    :func:`mjccd._validate.pose_array`, which names the error or scales each
+    quaternion before normalising it.
     """
+    total = 0.0
     for i in range(poses.shape[0]):
         for m in range(7):
             if not np.isfinite(poses[i, m]):
-                return i
+                return False
         norm = np.sqrt(poses[i, 3] * poses[i, 3] + poses[i, 4] * poses[i, 4] + poses[i, 5] * poses[i, 5]
                        + poses[i, 6] * poses[i, 6])
         if norm < 1e-12:
-            return i
+            return False
         for m in range(3):
             p[i, m] = poses[i, m]
         for m in range(4):
             q[i, m] = poses[i, 3 + m] / norm
-    return -1
+            total += q[i, m] * q[i, m]
+    return abs(total - poses.shape[0]) < 0.5
 
 
 @_jit
@@ -224,12 +397,34 @@ def _sort_by_entry(cand, m, entry):
         cand[b + 1] = k
 
 
-@_jit
-def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs,
-                new_only, timing, outcome, entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws):
-    """One frame over all pairs.  Fills the per-pair arrays and ``counters``; returns (best pair, rows, iv, owner).
+@_inline
+def _too_slow(p0, q0, p1, q1, rmax, min_motion, i, j, k):
+    """Policy: the ellipsoids of pair k = (i, j) move by less than ``min_motion[k]`` relative to each other.
 
-    ``q1_raw`` is sign-aligned here with ``q0``.  ``times[k]`` is the first
+    :func:`mjccd.filters.relative_sweep` bounds how far any point of j moves
+    relative to any point of i; ``min_motion[k] = 0`` checks every pair.
+    """
+    return min_motion[k] > 0.0 and fl.relative_sweep(
+        (p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]),
+        (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3]), (q1[i, 0], q1[i, 1], q1[i, 2], q1[i, 3]), rmax[i],
+        (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]),
+        (q0[j, 0], q0[j, 1], q0[j, 2], q0[j, 3]), (q1[j, 0], q1[j, 1], q1[j, 2], q1[j, 3]), rmax[j]) < min_motion[k]
+
+
+@_inline
+def _sphere_entry(p0, p1, rmax, i, j):
+    """:func:`mjccd.filters.sphere_entry` of the bounding spheres of ellipsoids i and j (-1: they never meet)."""
+    return fl.sphere_entry((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), rmax[i],
+                           (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]), rmax[j])
+
+
+@_jit
+def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
+    """One frame over all pairs of the workspace ``ws`` (a :class:`WorkspaceRef`); returns (best pair, rows, iv, owner).
+
+    Poses: (N, 3) positions and (N, 4) unit quaternions at both ends of the
+    frame; ``q1_raw`` is sign-aligned here with ``q0``.  Fills the per-pair
+    arrays of the workspace and its ``counters``: ``times[k]`` is the first
     contact of pair k (-1 when none found), ``entry[k]`` its sphere-entry
     time.  A pair on which the exact solver hit a limit gets the outcome
     UNCERTAIN: ``times[k]`` and ``times_hi[k]`` are then its bracket (every
@@ -237,25 +432,25 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
     is known and only later intervals are not), and it counts as a possible
     contact at ``times[k]`` (``times_hi`` is written for UNCERTAIN pairs only).
     With ``all_pairs`` every pair not cleared by a filter is solved
-    over [0, 1] and its intervals are written to ``iv`` (``owner`` gives the
-    pair of each row; both are replaced by larger arrays when full, so use the
-    returned ones and their first ``rows`` rows); otherwise only the frame's
-    first contact is sought.  ``ws`` is the scratch from :func:`workspace`.
-    A pair whose relative motion over the frame (:func:`mjccd.filters.relative_sweep`)
-    stays below ``min_motion[k]`` is counted as cleared by the spheres.
-    With ``new_only`` pairs already touching or overlapping at the start are
-    counted but neither solved nor reported, so the first contact is the
-    earliest new one.  Nothing is allocated unless a pair reaches the exact
-    solver or ``iv`` fills up.
+    over [0, 1] and its intervals are written to ``iv`` (R, 2) (``owner`` (R,)
+    gives the pair of each row; both are replaced by larger arrays when full,
+    so use the returned ones and their first ``rows`` rows); otherwise only
+    the frame's first contact is sought.  A pair whose relative motion over
+    the frame stays below ``min_motion[k]`` is left out (outcome TOO_SLOW, a
+    policy, not a filter).  With ``new_only`` pairs already touching or
+    overlapping at the start are counted but neither solved nor reported, so
+    the first contact is the earliest new one.  Nothing is allocated unless a
+    pair reaches the exact solver or ``iv`` fills up.
     """
-    radii, p0, q0, p1, q1_raw, pairs = _borrow(radii), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1_raw), _borrow(pairs)
-    min_motion = _borrow(min_motion)
-    cache_n, cache_kind, outcome, entry = _borrow(cache_n), _borrow(cache_kind), _borrow(outcome), _borrow(entry)
-    times, points, normals, ticks, counters = _borrow(times), _borrow(points), _borrow(normals), _borrow(ticks), _borrow(counters)
-    times_hi = _borrow(times_hi)
-    q1, rmax, S, den = _borrow(ws[0]), _borrow(ws[1]), _borrow(ws[2]), _borrow(ws[3])
-    R0, R1, work, scratch = _borrow(ws[4]), _borrow(ws[5]), _borrow(ws[6]), _borrow(ws[7])
-    cand, ready, aff_scratch = _borrow(ws[8]), _borrow(ws[9]), _borrow(ws[10])
+    affine, use_cache = field(ws, "affine"), field(ws, "plane_cache")
+    p0, q0, p1, q1_raw = _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1_raw)
+    radii, rmax, pairs, min_motion = field(ws, "radii"), field(ws, "rmax"), field(ws, "pairs"), field(ws, "min_motion")
+    cache_n, cache_kind = field(ws, "cache_n"), field(ws, "cache_kind")
+    outcome, entry, times, times_hi = field(ws, "outcome"), field(ws, "entry"), field(ws, "times"), field(ws, "times_hi")
+    points, normals, ticks, counters = field(ws, "points"), field(ws, "normals"), field(ws, "ticks"), field(ws, "counters")
+    q1, S, den, R0, R1 = field(ws, "q1_aligned"), field(ws, "S"), field(ws, "den"), field(ws, "R0"), field(ws, "R1")
+    work, scratch, cand = field(ws, "work"), field(ws, "scratch"), field(ws, "cand")
+    ready, aff_scratch = field(ws, "ready"), field(ws, "aff_scratch")
     n = radii.shape[0]
     npairs = pairs.shape[0]
     for i in range(n):
@@ -273,16 +468,12 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
         i = pairs[k, 0]
         j = pairs[k, 1]
         times[k] = -1.0
-        te = fl.sphere_entry((p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]), rmax[i],
-                             (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]), rmax[j])
-        if te >= 0.0 and min_motion[k] > 0.0 and fl.relative_sweep(
-                (p0[i, 0], p0[i, 1], p0[i, 2]), (p1[i, 0], p1[i, 1], p1[i, 2]),
-                (q0[i, 0], q0[i, 1], q0[i, 2], q0[i, 3]), (q1_raw[i, 0], q1_raw[i, 1], q1_raw[i, 2], q1_raw[i, 3]),
-                rmax[i], (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]),
-                (q0[j, 0], q0[j, 1], q0[j, 2], q0[j, 3]), (q1_raw[j, 0], q1_raw[j, 1], q1_raw[j, 2], q1_raw[j, 3]),
-                rmax[j]) < min_motion[k]:
-            te = -1.0
-        code = SPHERE
+        te = -1.0
+        if _too_slow(p0, q0, p1, q1_raw, rmax, min_motion, i, j, k):
+            code = TOO_SLOW
+        else:
+            te = _sphere_entry(p0, p1, rmax, i, j)
+            code = SPHERE
         if te >= 0.0:
             if not ready[i]:
                 _prepare(affine, i, radii, q0, q1_raw, q1, S, den, R0, R1, aff_scratch)
@@ -313,6 +504,8 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
             ncand += 1
         if code <= NEW_PLANE:
             counters[1 + code] += 1
+        elif code == TOO_SLOW:
+            counters[9] += 1
         if timing:
             ticks[k] = _ticks() - t_start
     niv = 0
@@ -380,30 +573,33 @@ def step_kernel(affine, radii, p0, q0, p1, q1_raw, pairs, min_motion, use_cache,
 
 
 @_jit
-def run_kernel(affine, radii, positions, quats, pairs, min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only,
-               timing, best_time, best_pair, best_point, best_normal, counters, outcomes, ticks, frame_ticks,
-               entry, times, times_hi, points, normals, iv, owner, ws):
-    """Frames 0..F-1 of a pose sequence (F + 1, N, ...) in one call, carrying the plane cache.
+def run_kernel(ws, positions, quats, iv, owner, new_only, timing, out):
+    """Frames 0..F-1 of a pose sequence in one call, carrying the plane cache; fills ``out`` (``_RunArrays``).
 
-    ``all_pairs`` must be False (first contacts only; it is an argument so that
-    :func:`step_kernel` is compiled once for both callers, not once more for a
-    constant).  ``entry`` ... ``ws`` are the per-frame arrays of :func:`step_kernel`.  All
-    arrays are owned by the caller for the whole call, so they are borrowed
-    here: the per-frame views and calls are then free of reference counting.
+    ``positions`` (F + 1, N, 3) and unit ``quats`` (F + 1, N, 4); first contacts
+    only.  ``iv``/``owner`` as in :func:`step_kernel` (not written: no
+    intervals are asked for).  Each frame's outcomes, ticks and counters are
+    copied from the workspace into row f of ``out``.
     """
-    radii, positions, quats, pairs, cache_n, cache_kind = (_borrow(radii), _borrow(positions), _borrow(quats),
-                                                           _borrow(pairs), _borrow(cache_n), _borrow(cache_kind))
-    min_motion = _borrow(min_motion)
-    counters, outcomes, ticks = _borrow(counters), _borrow(outcomes), _borrow(ticks)
-    entry, times, points, normals = _borrow(entry), _borrow(times), _borrow(points), _borrow(normals)
-    times_hi = _borrow(times_hi)
+    outcome, ticks, counters = field(ws, "outcome"), field(ws, "ticks"), field(ws, "counters")
+    times, points, normals = field(ws, "times"), field(ws, "points"), field(ws, "normals")
+    positions, quats = _borrow(positions), _borrow(quats)
+    best_time, best_pair, best_point, best_normal = (_borrow(out.time), _borrow(out.pair), _borrow(out.point),
+                                                     _borrow(out.normal))
+    out_counters, out_outcomes, out_ticks, frame_ticks = (_borrow(out.counters), _borrow(out.outcomes),
+                                                          _borrow(out.ticks), _borrow(out.frame_ticks))
     t_start = 0
     for f in range(positions.shape[0] - 1):
         if timing:
             t_start = _ticks()
-        k, _, _, _ = step_kernel(affine, radii, positions[f], quats[f], positions[f + 1], quats[f + 1], pairs,
-                                 min_motion, use_cache, cache_n, cache_kind, all_pairs, new_only, timing, outcomes[f], entry, times,
-                                 times_hi, points, normals, ticks[f], counters[f], iv, owner, ws)
+        k, _, _, _ = step_kernel(ws, positions[f], quats[f], positions[f + 1], quats[f + 1], iv, owner, False,
+                                 new_only, timing)
+        for k2 in range(outcome.shape[0]):
+            out_outcomes[f, k2] = outcome[k2]
+            if timing:
+                out_ticks[f, k2] = ticks[k2]
+        for c in range(N_COUNTERS):
+            out_counters[f, c] = counters[c]
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
         if k >= 0:
@@ -411,6 +607,52 @@ def run_kernel(affine, radii, positions, quats, pairs, min_motion, use_cache, ca
             best_normal[f] = normals[k]
         if timing:
             frame_ticks[f] = _ticks() - t_start
+
+
+@_inline
+def _may_touch(affine, radii, rmax, pairs, min_motion, p0, q0, p1, q1):
+    """The loop of :func:`may_touch_kernel` on (borrowed) arrays."""
+    for k in range(pairs.shape[0]):
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        if _too_slow(p0, q0, p1, q1, rmax, min_motion, i, j, k) or _sphere_entry(p0, p1, rmax, i, j) < 0.0:
+            continue
+        if fl.slabs_clear(affine, radii, rmax, p0, q0, p1, q1, i, j):
+            continue
+        if static_status_pose(radii[i], p0[i], q0[i], radii[j], p0[j], q0[j]) == -1:
+            continue
+        return True
+    return False
+
+
+@_jit
+def may_touch_kernel(ws, p0, q0, p1, q1):
+    """False only when no pair of the workspace ``ws`` can make a new contact in the frame.
+
+    Poses as :func:`step_kernel` takes them.  Per pair, what :func:`step_kernel`
+    decides the same way: the too-slow policy and the moving spheres
+    (:func:`mjccd.filters.sphere_entry`); then slabs that hold over the whole
+    frame (:func:`mjccd.filters.slabs_clear`); last, a pair certainly
+    overlapping at t = 0 (the static test :func:`step_kernel` runs) is no new
+    contact.  So :func:`step_kernel` with ``new_only`` finds no contact, not
+    even an uncertain one, when this returns False.  Allocates nothing.
+    """
+    return _may_touch(field(ws, "affine"), field(ws, "radii"), field(ws, "rmax"), field(ws, "pairs"),
+                      field(ws, "min_motion"), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1))
+
+
+@_jit
+def poses_may_touch(ws, poses_t0, poses_t1):
+    """:func:`may_touch_kernel` of (N, 7) poses, split into the workspace's pose arrays as :meth:`Scene.step` splits them.
+
+    True (nothing cleared) when a pose is not finite or not ordinary (see
+    :func:`_split_poses`): the exact check then decides, or names the bad input.
+    """
+    p0, q0, p1, q1 = field(ws, "p0"), field(ws, "q0"), field(ws, "p1"), field(ws, "q1")
+    if not (_split_poses(_borrow(poses_t0), p0, q0) and _split_poses(_borrow(poses_t1), p1, q1)):
+        return True
+    return _may_touch(field(ws, "affine"), field(ws, "radii"), field(ws, "rmax"), field(ws, "pairs"),
+                      field(ws, "min_motion"), p0, q0, p1, q1)
 
 
 # ---------------------------------------------------------------- Python layer
@@ -453,7 +695,11 @@ class FrameCounters:
     which the exact solver hit a limit (outcome "uncertain"): each is a
     possible contact within its bracket and is not counted as colliding unless
     its first contact was found (with ``all_pairs``, when only a later interval
-    was left open).
+    was left open).  ``too_slow`` counts the pairs left out because their
+    relative motion stayed below their ``min_motion`` (a policy of the caller,
+    :meth:`Scene.set_min_motion`; the filters, ``sphere_culled`` to
+    ``new_plane``, only clear pairs that cannot touch).  It comes last so that
+    the indices of the others stay those of earlier versions.
     """
 
     pairs: int
@@ -465,6 +711,7 @@ class FrameCounters:
     colliding: int
     pruned: int
     uncertain: int
+    too_slow: int
 
     @classmethod
     def from_array(cls, c):
@@ -496,7 +743,7 @@ class RunResult:
     pair index (-1), ``point``/``normal`` (F, 3) zero when none or at t = 0;
     ``uncertain`` (F,) int8 is 1 where that first contact is uncertain (then
     ``time[f]`` is the low end of its bracket and point and normal are zero;
-    :meth:`Scene.step` gives the bracket); ``counters`` (F, 9) in the order of
+    :meth:`Scene.step` gives the bracket); ``counters`` (F, N_COUNTERS) in the order of
     :class:`FrameCounters`; ``outcomes``
     (F, P) the outcome code of every pair (see ``OUTCOME_NAMES``); ``ticks``
     (F, P) CPU cycles per pair and ``frame_ticks`` (F,) per frame when timing
@@ -514,15 +761,40 @@ class RunResult:
     uncertain: np.ndarray
 
 
-def pair_contact(pairs, k, outcome, times, times_hi, points, normals, intervals=()):
-    """The :class:`PairContact` of pair k from the per-pair arrays :func:`step_kernel` filled."""
+# what run_kernel fills: the arrays of a RunResult but ``uncertain`` (set from them afterwards)
+_RunArrays = collections.namedtuple("_RunArrays", [f.name for f in fields(RunResult) if f.name != "uncertain"])
+
+
+class FirstContact(NamedTuple):
+    """The answer of :meth:`Scene.first_contact`: the fields of :class:`PairContact` that a first contact needs.
+
+    ``pair`` indexes :attr:`Scene.pairs`; ``time`` in [0, 1]; ``point`` and
+    ``normal`` (3,) copies, None exactly when :class:`PairContact` has None;
+    ``bracket`` (lo, hi) when the answer is uncertain (then ``time`` is lo),
+    else None.
+    """
+
+    pair: int
+    time: float
+    point: object
+    normal: object
+    bracket: tuple
+
+
+def first_of(k, outcome, times, times_hi, points, normals):
+    """The :class:`FirstContact` of pair k from the per-pair arrays :func:`step_kernel` filled."""
     t = float(times[k])
     uncertain = int(outcome[k]) == UNCERTAIN
-    no_touch = (t == 0.0 or uncertain) and not np.any(normals[k])
-    return PairContact(int(k), (int(pairs[k, 0]), int(pairs[k, 1])), t,
-                       None if no_touch else points[k].copy(), None if no_touch else normals[k].copy(),
-                       intervals, "uncertain" if uncertain else "certified",
-                       (t, float(times_hi[k])) if uncertain else None)
+    no_touch = (t == 0.0 or uncertain) and not normals[k].any()
+    return FirstContact(int(k), t, None if no_touch else points[k].copy(), None if no_touch else normals[k].copy(),
+                        (t, float(times_hi[k])) if uncertain else None)
+
+
+def pair_contact(pairs, k, outcome, times, times_hi, points, normals, intervals=()):
+    """The :class:`PairContact` of pair k from the per-pair arrays :func:`step_kernel` filled."""
+    k, t, point, normal, bracket = first_of(k, outcome, times, times_hi, points, normals)
+    return PairContact(k, (int(pairs[k, 0]), int(pairs[k, 1])), t, point, normal, intervals,
+                       "certified" if bracket is None else "uncertain", bracket)
 
 
 def frame_result(pairs, best_k, outcome, times, times_hi, points, normals, counters, rows=None):
@@ -605,41 +877,79 @@ class Scene:
         if len(same):
             raise InputError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, "
                              f"got {arr[same[0]].tolist()}")
-        self.pairs = np.ascontiguousarray(arr)
-        self.plane_cache = bool(plane_cache)
-        # (P,) per pair: a relative motion over a frame below this counts as free (zero: every pair checked);
-        # the guard sets it so that slow pairs are left to MuJoCo's own contacts
-        self.min_motion = np.zeros(len(self.pairs))
-        self.reset_cache()
-        n, npairs = len(self.radii), len(self.pairs)
-        # per-frame arrays of step and run, reused (results copy what they keep)
-        self._buffers = (np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 4)),
-                         np.empty(npairs, dtype=np.int8), np.empty(npairs), np.empty(npairs), np.zeros(npairs),
-                         np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
-                         np.zeros(N_COUNTERS, dtype=np.int64), np.empty((0, 2)), np.empty(0, dtype=np.int64),
-                         workspace(self.radii, npairs, self.motion == "affine"))
+        self._arrays = new_workspace(self.radii, arr, motion == "affine", plane_cache)
+        self._ref = workspace_ref(self._arrays)
+        self.radii, self.pairs, self.plane_cache = self._arrays.radii, self._arrays.pairs, self._arrays.plane_cache
+        self._iv, self._owner = np.empty((0, 2)), np.empty(0, dtype=np.int64)  # intervals (all pairs), grown as needed
+
+    @property
+    def workspace(self):
+        """The scene's :class:`WorkspaceRef`, for compiled callers (e.g. :func:`poses_may_touch` inside another kernel).
+
+        Its ``arrays`` are the scene's own buffers, written by every check:
+        read them, never write them (the plane cache and ``min_motion`` change
+        through :meth:`reset_cache` and :meth:`set_min_motion`).
+        """
+        return self._ref
+
+    @property
+    def min_motion(self):
+        """(P,) read-only: per pair, the relative motion over a frame below which the pair is left out.
+
+        Zero (the default) checks every pair; see :meth:`set_min_motion`.
+        """
+        view = self._arrays.min_motion.view()
+        view.flags.writeable = False
+        return view
+
+    def set_min_motion(self, values):
+        """Leave out the pairs that move too little to matter: a policy, not a filter.
+
+        A pair whose relative motion over a frame (how far any point of one
+        ellipsoid moves relative to any point of the other,
+        :func:`mjccd.filters.relative_sweep`) stays below ``values[k]`` is not
+        checked: its outcome is ``too_slow`` and it counts in
+        ``FrameCounters.too_slow``, whether or not it touches.  The guard sets
+        this so that slow pairs are left to MuJoCo's own contacts.
+
+        Args:
+            values: (P,) finite numbers >= 0, one per pair (0: always checked).
+        """
+        arr = _validate.array(values, (len(self.pairs),), "min_motion")
+        bad = np.flatnonzero(arr < 0.0)
+        if len(bad):
+            raise InputError(f"min_motion[{bad[0]}]: expected a distance >= 0, got {float(arr[bad[0]])!r}")
+        self._arrays.min_motion[:] = arr
 
     def reset_cache(self):
         """Forget every cached separating plane."""
-        self._cache_n = np.zeros((len(self.pairs), 3))
-        self._cache_kind = np.zeros(len(self.pairs), dtype=np.int8)
+        self._arrays.cache_n[:] = 0.0
+        self._arrays.cache_kind[:] = 0
 
     def _poses(self, poses, field, p, q):
         """Positions into p and normalised quaternions into q; a bad input raises naming ``field``.
 
-        The compiled split takes ordinary poses.  A quaternion is a direction, but one whose squared
-        norm overflows ([1e300, 1e300, 0, 0]) comes out of the split as a zero row (so the unit rows'
-        squares do not sum to N): then, as every other input, the poses go to
-        :func:`mjccd._validate.pose_array`, which scales each quaternion before normalising it.
+        The compiled split takes ordinary poses; every other input (lists, other
+        layouts, NaN, a zero quaternion, a quaternion whose squared norm
+        overflows, see :func:`_split_poses`) goes to
+        :func:`mjccd._validate.pose_array`, which raises or scales each quaternion
+        before normalising it.
         """
-        n = len(self.radii)
-        if (isinstance(poses, np.ndarray) and poses.dtype == np.float64 and poses.shape == (n, 7)
-                and poses.flags.c_contiguous and _split_poses(poses, p, q) < 0 and abs(np.vdot(q, q) - n) < 0.5):
-            return p, q
-        checked = _validate.pose_array(poses, field, n)  # raises, or converts other input
+        if (isinstance(poses, np.ndarray) and poses.dtype == np.float64 and poses.shape == p.shape[:1] + (7,)
+                and poses.flags.c_contiguous and _split_poses(poses, p, q)):
+            return
+        checked = _validate.pose_array(poses, field, len(p))  # raises, or converts other input
         p[:] = checked[:, :3]
         q[:] = checked[:, 3:]
-        return p, q
+
+    def _frame(self, poses_t0, poses_t1, all_pairs, new_contacts_only):
+        """Split the poses into the workspace and run :func:`step_kernel`: (best pair, rows)."""
+        a = self._arrays
+        self._poses(poses_t0, "poses_t0", a.p0, a.q0)
+        self._poses(poses_t1, "poses_t1", a.p1, a.q1)
+        best_k, niv, self._iv, self._owner = step_kernel(self._ref, a.p0, a.q0, a.p1, a.q1, self._iv, self._owner,
+                                                         all_pairs, new_contacts_only, False)
+        return best_k, niv
 
     def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
         """Check one frame.
@@ -655,17 +965,42 @@ class Scene:
         Returns:
             :class:`FrameResult`.
         """
-        p0, q0, p1, q1, outcome, entry, times, times_hi, points, normals, ticks, counters, iv, owner, ws = \
-            self._buffers
-        self._poses(poses_t0, "poses_t0", p0, q0)
-        self._poses(poses_t1, "poses_t1", p1, q1)
-        best_k, niv, iv, owner = step_kernel(
-            self.motion == "affine", self.radii, p0, q0, p1, q1, self.pairs, self.min_motion, self.plane_cache,
-            self._cache_n,
-            self._cache_kind, bool(all_pairs), bool(new_contacts_only), False, outcome, entry, times, times_hi,
-            points, normals, ticks, counters, iv, owner, ws)
-        return frame_result(self.pairs, best_k, outcome, times, times_hi, points, normals, counters,
-                            (iv[:niv], owner[:niv]) if all_pairs else None)
+        all_pairs = bool(all_pairs)
+        best_k, niv = self._frame(poses_t0, poses_t1, all_pairs, bool(new_contacts_only))
+        a = self._arrays
+        return frame_result(a.pairs, best_k, a.outcome, a.times, a.times_hi, a.points, a.normals, a.counters,
+                            (self._iv[:niv], self._owner[:niv]) if all_pairs else None)
+
+    def first_contact(self, poses_t0, poses_t1, *, new_contacts_only=False):
+        """The first contact of one frame, without the result objects of :meth:`step`: None or a :class:`FirstContact`.
+
+        The same compiled kernel on the same buffers and plane cache as
+        :meth:`step`, so it equals ``step(poses_t0, poses_t1,
+        new_contacts_only=...).first`` (and carries the plane cache on the same
+        way); for callers that check every simulator step (the guard).
+        Arguments as in :meth:`step`.
+        """
+        best_k, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only))
+        if best_k < 0:
+            return None
+        a = self._arrays
+        return first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
+
+    def may_touch(self, poses_t0, poses_t1):
+        """A cheap conservative test: False only when :meth:`first_contact` ``(..., new_contacts_only=True)`` of
+        the same poses certainly finds nothing (not even an uncertain contact).
+
+        Per pair: the too-slow policy and the moving spheres, as :meth:`step`
+        decides them; slabs between the two ellipsoids that hold over the whole
+        frame (:func:`mjccd.filters.slabs_clear`); a pair overlapping at the
+        start (the static test of :meth:`step`).  No exact solve, nothing
+        allocated; the plane cache is not touched.  Compiled callers use
+        :func:`poses_may_touch` with :attr:`workspace`.  Arguments as in :meth:`step`.
+        """
+        a = self._arrays
+        self._poses(poses_t0, "poses_t0", a.p0, a.q0)
+        self._poses(poses_t1, "poses_t1", a.p1, a.q1)
+        return bool(may_touch_kernel(self._ref, a.p0, a.q0, a.p1, a.q1))
 
     def run(self, poses, *, timing=False, new_contacts_only=False):
         """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
@@ -688,15 +1023,11 @@ class Scene:
         quats = np.ascontiguousarray(quats / norms[:, :, None])
         nf = arr.shape[0] - 1
         npairs = len(self.pairs)
-        out = RunResult(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
-                        np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
-                        np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64),
-                        np.zeros(nf, dtype=np.int8))
-        _, _, _, _, _, entry, times, times_hi, points, normals, _, _, iv, owner, ws = self._buffers
-        run_kernel(self.motion == "affine", self.radii, positions, quats, self.pairs, self.min_motion,
-                   self.plane_cache, self._cache_n, self._cache_kind, False, bool(new_contacts_only), bool(timing),
-                   out.time, out.pair, out.point, out.normal, out.counters, out.outcomes, out.ticks, out.frame_ticks,
-                   entry, times, times_hi, points, normals, iv, owner, ws)
+        out = _RunArrays(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
+                         np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
+                         np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))
+        run_kernel(self._ref, positions, quats, self._iv, self._owner, bool(new_contacts_only), bool(timing), out)
+        uncertain = np.zeros(nf, dtype=np.int8)
         hit = np.flatnonzero(out.pair >= 0)
-        out.uncertain[hit] = out.outcomes[hit, out.pair[hit]] == UNCERTAIN
-        return out
+        uncertain[hit] = out.outcomes[hit, out.pair[hit]] == UNCERTAIN
+        return RunResult(*out, uncertain)

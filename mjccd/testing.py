@@ -2,34 +2,16 @@
 import os
 import zipfile
 
-import mujoco
 import numpy as np
 
 from mjccd import _validate
 from mjccd.ccd import collision_intervals
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
+from mjccd.mujoco.adapter import ModelAdapter, load_model
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
-from mjccd.mujoco.monitor import CCDMonitor
-from mjccd.mujoco.motions import State, motions_between
-
-
-def load_model(model):
-    """An ``MjModel`` from a model, an MJCF path, or an MJCF string."""
-    if isinstance(model, mujoco.MjModel):
-        return model
-    if isinstance(model, (str, os.PathLike)):
-        text = os.fspath(model)
-        is_xml = text.lstrip().startswith("<")
-        if not is_xml and not os.path.isfile(text):
-            raise InputError(f"model: no such file {text!r}")
-        try:
-            return mujoco.MjModel.from_xml_string(text) if is_xml else mujoco.MjModel.from_xml_path(text)
-        except ValueError as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else "cannot compile"
-            raise InputError(f"model: MuJoCo cannot load {'the MJCF string' if is_xml else repr(text)}: "
-                             f"{first}") from None
-    raise InputTypeError(f"model: expected an MjModel, an MJCF path or an MJCF string, got {type(model).__name__}")
+from mjccd.mujoco.motions import MOTIONS, State
+from mjccd.mujoco.pairs import select_pairs
 
 
 def load_trajectory(trajectory, model, times=None):
@@ -69,14 +51,18 @@ def load_trajectory(trajectory, model, times=None):
     return qpos, times
 
 
-def _setup(model, trajectory, ellipsoids, times):
+def _setup(model, trajectory, ellipsoids, times, pairs, motion):
+    """(checker, states): the :class:`~mjccd.mujoco.ModelAdapter` of the model and the trajectory's states."""
     model = load_model(model)
     qpos, times = load_trajectory(trajectory, model, times)
     if ellipsoids is None:
         ellipsoids = fit_model(model)
     elif not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
-    return model, qpos, times, ellipsoids
+    if not isinstance(motion, str) or motion not in MOTIONS:
+        raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+    checker = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
+    return checker, _states(model, qpos, times)
 
 
 def _states(model, qpos, times):
@@ -117,12 +103,10 @@ def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motio
 
     A step whose answer is uncertain is listed too (``certainty == "uncertain"``, ``bracket`` in seconds).
     """
-    model, qpos, times, ellipsoids = _setup(model, trajectory, ellipsoids, times)
-    monitor = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs=pairs, motion=motion)
-    states = _states(model, qpos, times)
+    checker, states = _setup(model, trajectory, ellipsoids, times, pairs, motion)
     found = []
-    for s0, s1 in zip(states, states[1:]):
-        c = monitor.check(s0, s1)
+    for k, (s0, s1) in enumerate(zip(states, states[1:])):
+        c = checker.check(s0, s1, names=(f"trajectory[{k}]", f"trajectory[{k + 1}]")).first
         if c is not None:
             found.append(c)
     return found
@@ -186,16 +170,13 @@ def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion=
 
 def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid", times=None):
     """Maximal time intervals [t_in, t_out] (seconds) in which the two bodies' ellipsoids are not separate."""
-    model, qpos, times, ellipsoids = _setup(model, trajectory, ellipsoids, times)
-    monitor = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs=[pair], motion=motion)
-    states = _states(model, qpos, times)
-    shapes = [Ellipsoid(r) for r in ellipsoids.radii]
-    ids = monitor.body_ids
+    checker, states = _setup(model, trajectory, ellipsoids, times, [pair], motion)
+    shapes = [Ellipsoid(r) for r in checker.radii]
     out = []
-    for k, (s0, s1) in enumerate(zip(states, states[1:])):
-        motions = motions_between(model, ellipsoids, s0, s1, motion, body_ids=ids)
+    for s0, s1 in zip(states, states[1:]):
+        motions = checker.motions(s0, s1)
         span = s1.time - s0.time
-        for i, j in monitor.pairs:
+        for i, j in checker.pairs:
             for a, b in collision_intervals(shapes[i], motions[i], shapes[j], motions[j]):
                 lo, hi = s0.time + a * span, s0.time + b * span
                 if out and lo <= out[-1][1] + 1e-12 * max(1.0, abs(lo)):

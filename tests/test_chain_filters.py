@@ -14,6 +14,7 @@ import pytest
 
 from mjccd import Ball, Chain, Ellipsoid, Fixed, Free, Hinge, Slide, first_contact, replay
 from mjccd import chain_bounds as cb
+from mjccd.mujoco import ModelAdapter, State
 from mjccd.quadric import static_status_pose
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -272,34 +273,37 @@ def test_program_refuses_inconsistent_arrays():
 
 
 def _frames(model_file, traj_file, first, last):
+    """(model, ellipsoids, pairs, states) of a replay's frames first .. last."""
     model = replay.load_model(model_file)
-    bounds = replay.bounding_ellipsoids(model)
+    ellipsoids, pairs = replay.replay_ellipsoids(model)
     with np.load(traj_file) as d:
         qpos = d["qpos"][first:last + 1]
-    pos, quat = replay.geom_poses(model, qpos, bounds.geom_ids)
-    return model, bounds, qpos, pos, quat
+    none = (np.zeros((0, 3)), np.zeros((0, 4)))
+    return model, ellipsoids, pairs, [State(q, *none, float(k)) for k, q in enumerate(qpos)]
 
 
-def _same_answers(model, bounds, qpos, pos, quat):
-    filtered = replay.FrameChecker(bounds, "chain", model)
-    plain = replay.FrameChecker(bounds, "chain", model, chain_filters=False)
-    for k in range(len(qpos) - 1):
-        a = filtered.step(pos[k], quat[k], pos[k + 1], quat[k + 1], qpos[k], qpos[k + 1])
-        a = [x.copy() for x in (a.status, a.toi, a.point, a.normal)]
-        b = plain.step(pos[k], quat[k], pos[k + 1], quat[k + 1], qpos[k], qpos[k + 1])
-        np.testing.assert_array_equal(a[0], b.status)
-        np.testing.assert_array_equal(a[1], b.toi)
-        hit = (b.status == 1) & (b.toi >= 0.0)  # point and normal are reported for first contacts only
-        np.testing.assert_array_equal(a[2][hit], b.point[hit])
-        np.testing.assert_array_equal(a[3][hit], b.normal[hit])
-    return filtered.counters, plain.counters
+def _same_answers(model, ellipsoids, pairs, states):
+    """Every frame's contacts of all pairs with the chain filters equal those without; the summed counters."""
+    filtered = ModelAdapter(model, ellipsoids, pairs, "chain")
+    plain = ModelAdapter(model, ellipsoids, pairs, "chain", chain_filters=False)
+    totals = [dict.fromkeys(replay.COUNTER_NAMES, 0), dict.fromkeys(replay.COUNTER_NAMES, 0)]
+    for s0, s1 in zip(states, states[1:]):
+        a, b = (checker.check(s0, s1, all_pairs=True) for checker in (filtered, plain))
+        assert [(c.pair, c.fraction, c.status_at_start, c.certainty) for c in a.contacts] == \
+            [(c.pair, c.fraction, c.status_at_start, c.certainty) for c in b.contacts]
+        for x, y in zip(a.contacts, b.contacts):
+            np.testing.assert_array_equal(x.point, y.point)
+            np.testing.assert_array_equal(x.normal, y.normal)
+        for total, report in zip(totals, (a, b)):
+            for name, v in report.counters.items():
+                total[name] += v
+    return totals
 
 
 def test_replay_chain_filters_give_the_same_contacts_boxing():
     """Glove contacts of the boxing scene: every frame's answers equal those of solving all 441 pairs."""
-    model, bounds, qpos, pos, quat = _frames(ROOT / "models" / "boxing.xml", ROOT / "data" / "boxing_traj.npz",
-                                             143, 148)
-    counters, plain = _same_answers(model, bounds, qpos, pos, quat)
+    counters, plain = _same_answers(*_frames(ROOT / "models" / "boxing.xml", ROOT / "data" / "boxing_traj.npz",
+                                             143, 148))
     assert counters["colliding"] == plain["colliding"] >= 3
     assert counters["overlapping_t0"] == plain["overlapping_t0"] >= 1
     assert counters["sphere_culled"] > 1500 and counters["cached_plane"] > 10
@@ -308,20 +312,23 @@ def test_replay_chain_filters_give_the_same_contacts_boxing():
 
 def test_replay_chain_filters_give_the_same_contacts_arm():
     """Hinge chains (the arm scene): the same answers with and without filters through its contacts."""
-    model, bounds, qpos, pos, quat = _frames(ROOT / "models" / "arm_obstacle.xml", ROOT / "data" / "arm_traj.npz",
-                                             46, 53)
-    counters, plain = _same_answers(model, bounds, qpos, pos, quat)
+    counters, plain = _same_answers(*_frames(ROOT / "models" / "arm_obstacle.xml", ROOT / "data" / "arm_traj.npz",
+                                             46, 53))
     assert counters["colliding"] == plain["colliding"] >= 1
 
 
 def test_chain_program_poses_match_mujoco():
-    """replay.chain_program describes chain_motion's chains: the poses equal MuJoCo's kinematics."""
+    """The chain layout's program (what the filters read) puts every ellipsoid where MuJoCo's kinematics does."""
     for model_file, traj_file in (("boxing.xml", "boxing_traj.npz"), ("arm_obstacle.xml", "arm_traj.npz")):
-        model, bounds, qpos, pos, quat = _frames(ROOT / "models" / model_file, ROOT / "data" / traj_file, 10, 12)
-        filt = cb.ChainFilter(replay.chain_program(model, bounds.geom_ids), bounds.radii, bounds.pairs)
-        for t in (0.0, 1.0):
-            c, q = filt.poses(qpos[1], qpos[2], t)
-            k = 1 if t == 0.0 else 2
-            np.testing.assert_allclose(c, pos[k], atol=1e-12)
-            sign = np.sign(np.sum(q * quat[k], axis=1))[:, None]
-            np.testing.assert_allclose(q * sign, quat[k], atol=1e-12)
+        model, ellipsoids, pairs, states = _frames(ROOT / "models" / model_file, ROOT / "data" / traj_file, 10, 12)
+        checker = ModelAdapter(model, ellipsoids, pairs, "chain")
+        layout = checker.chains
+        filt = cb.ChainFilter(layout.program, ellipsoids.radii, pairs)
+        v1, v2 = layout.values(states[1]), layout.values(states[2])
+        for t, state in ((0.0, states[1]), (1.0, states[2])):
+            c, q = filt.poses(v1, v2, t)
+            poses = checker.kinematics.ellipsoid_poses(state, checker.body_ids, ellipsoids.positions,
+                                                       ellipsoids.quaternions)
+            np.testing.assert_allclose(c, poses[:, :3], atol=1e-12)
+            sign = np.sign(np.sum(q * poses[:, 3:], axis=1))[:, None]
+            np.testing.assert_allclose(q * sign, poses[:, 3:], atol=1e-12)

@@ -539,10 +539,9 @@ def test_step_check_prefilter_never_hides_a_contact(motion):
             s1 = capture(data)
             may = check.end_may_touch(data)
             p0, p1 = check.poses
-            assert np.array_equal(p0, monitor._kin.ellipsoid_poses(s0, monitor.body_ids, ell.positions,
-                                                                    ell.quaternions))
-            assert np.array_equal(p1, monitor._kin.ellipsoid_poses(s1, monitor.body_ids, ell.positions,
-                                                                    ell.quaternions))
+            kinematics = monitor.adapter.kinematics
+            assert np.array_equal(p0, kinematics.ellipsoid_poses(s0, monitor.body_ids, ell.positions, ell.quaternions))
+            assert np.array_equal(p1, kinematics.ellipsoid_poses(s1, monitor.body_ids, ell.positions, ell.quaternions))
             exact = monitor.check(s0, s1)
             lean = check.first((s0.time, s1.time))
             if not may:

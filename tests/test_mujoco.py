@@ -418,7 +418,6 @@ def _widened(real):
 @pytest.fixture
 def limited_scene(monkeypatch):
     """Scene kernels run as Python with an exact solver that hits a limit on every pair: bracket [0.3, 0.8]."""
-    import mjccd.mujoco.monitor as mon
     import mjccd.scene as sc
 
     def limit(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
@@ -427,7 +426,6 @@ def limited_scene(monkeypatch):
     monkeypatch.setattr(sc, "exact_pair", limit)
     kernel = sc.step_kernel.py_func
     monkeypatch.setattr(sc, "step_kernel", kernel)
-    monkeypatch.setattr(mon, "step_kernel", kernel)
 
 
 def test_monitor_certified_contacts_say_so():
@@ -460,9 +458,9 @@ def test_monitor_reports_uncertain_scene_answers(limited_scene):
 
 
 def test_chain_monitor_reports_uncertain_answers(monkeypatch):
-    import mjccd.mujoco.monitor as mon
+    import mjccd.mujoco.adapter as adapter
 
-    monkeypatch.setattr(mon, "first_contact", _widened(mon.first_contact))
+    monkeypatch.setattr(adapter, "first_contact", _widened(adapter.first_contact))
     m, d = _throw(0.0011)
     seen = []
     monitor = CCDMonitor(m, d, fit_model(m), motion="chain", on_contact=seen.append)
@@ -476,10 +474,10 @@ def test_chain_monitor_reports_uncertain_answers(monkeypatch):
 def test_testing_helpers_with_uncertain_answers(monkeypatch):
     """An uncertain answer passes assert_first_contact only when the expected time is in its bracket, and never
     passes assert_no_contact; both messages name the bracket."""
-    import mjccd.mujoco.monitor as mon
+    import mjccd.mujoco.adapter as adapter
     from mjccd.testing import assert_first_contact, assert_no_contact
 
-    monkeypatch.setattr(mon, "first_contact", _widened(mon.first_contact))
+    monkeypatch.setattr(adapter, "first_contact", _widened(adapter.first_contact))
     m, qpos = _balls()
     rows = qpos[::3]  # steps of 6 ms: the contact at 0.07 s lies at 2/3 of the step [0.066, 0.072]
     times = np.arange(len(rows)) * 0.006

@@ -3,10 +3,13 @@ import csv
 import json
 import pathlib
 
+import mujoco
 import numpy as np
 import pytest
 
 from mjccd import Ellipsoid, Rigid, first_contact, replay
+from mjccd.mujoco import ModelAdapter, State
+from mjccd.quadric import matrix_to_quat
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "boxing.xml"
@@ -30,10 +33,11 @@ def result(short_traj, tmp_path_factory):
 
 def test_scene_layout():
     model = replay.load_model(MODEL)
-    bounds = replay.bounding_ellipsoids(model)
-    assert len(bounds.names) == 42
-    assert len(bounds.pairs) == 21 * 21      # boxer against boxer only
-    assert all(bounds.names[i].startswith("a_") and bounds.names[j].startswith("b_") for i, j in bounds.pairs)
+    ellipsoids, pairs = replay.replay_ellipsoids(model)
+    names = ellipsoids.geoms
+    assert len(names) == 42
+    assert len(pairs) == 21 * 21      # boxer against boxer only
+    assert all(names[i].startswith("a_") and names[j].startswith("b_") for i, j in pairs)
 
 
 def test_end_to_end(result):
@@ -62,13 +66,19 @@ def test_contact_agrees_with_pairwise_solver(result, short_traj):
     res, _ = result
     model = replay.load_model(MODEL)
     qpos, _ = replay.load_trajectory(short_traj, model)
-    b = res.bounds
-    pos, quat = replay.geom_poses(model, qpos, b.geom_ids)
+    ell = res.ellipsoids
+    data = mujoco.MjData(model)
     for c in res.contacts[:4]:
         k = c["frame"]
-        i, j = (b.names.index(n) for n in c["ellipsoids"])
-        got = first_contact(Ellipsoid(b.radii[i]), Rigid(pos[k, i], quat[k, i], pos[k + 1, i], quat[k + 1, i]),
-                            Ellipsoid(b.radii[j]), Rigid(pos[k, j], quat[k, j], pos[k + 1, j], quat[k + 1, j]))
+        i, j = (ell.geoms.index(n) for n in c["ellipsoids"])
+        poses = []
+        for q in qpos[k:k + 2]:  # the geoms' poses from MuJoCo's own kinematics
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
+            poses.append({e: (data.geom_xpos[g].copy(), matrix_to_quat(data.geom_xmat[g].reshape(3, 3)))
+                          for e, g in ((i, model.geom(ell.geoms[i]).id), (j, model.geom(ell.geoms[j]).id))})
+        got = first_contact(Ellipsoid(ell.radii[i]), Rigid(*poses[0][i], *poses[1][i]),
+                            Ellipsoid(ell.radii[j]), Rigid(*poses[0][j], *poses[1][j]))
         assert got is not None and got.point is not None
         assert abs(got.time - c["toi"]) < 1e-9
         np.testing.assert_allclose(got.point, c["point"], atol=1e-6)
@@ -136,7 +146,8 @@ def test_arm_chain_frames_agree_with_whole_sweep(tmp_path):
     first = res.contacts[0]
     assert first["labels"] == ["b_4", "web"]
     model = replay.load_model(arm)
-    rows = {tuple(r["pair"]): r for r in replay.interval_table(model, res.bounds, keys[0], keys[1], repeat=0)}
+    checker = ModelAdapter(model, res.ellipsoids, res.pairs, "chain")
+    rows = {tuple(r["pair"]): r for r in replay.interval_table(checker, keys[0], keys[1], repeat=0)}
     assert len(rows) == 27
     assert rows[("hand", "web")]["F_degree_t"] == 96
     t_in = rows[("b_4", "web")]["intervals"][0][0]
@@ -150,14 +161,14 @@ def test_arm_sweep_intervals_match_the_static_test():
     from mjccd.quadric import static_status_matrices
 
     model = replay.load_model(ROOT / "models" / "arm_obstacle.xml")
-    bounds = replay.bounding_ellipsoids(model, None)
+    checker = ModelAdapter(model, *replay.replay_ellipsoids(model), "chain")
     with np.load(ROOT / "data" / "arm_traj.npz") as d:
         keys = d["keyframes"]
-    rows = replay.interval_table(model, bounds, keys[0], keys[1], repeat=0)
-    motions = [replay.chain_motion(model, g, keys[0], keys[1]) for g in bounds.geom_ids]
+    rows = replay.interval_table(checker, keys[0], keys[1], repeat=0)
+    motions = checker.motions(*(State(q, np.zeros((0, 3)), np.zeros((0, 4))) for q in keys[:2]))
     checked = 0
-    for (i, j), row in zip(bounds.pairs, rows):
-        qa, qb = motions[i].quadric(bounds.radii[i]), motions[j].quadric(bounds.radii[j])
+    for (i, j), row in zip(checker.pairs, rows):
+        qa, qb = motions[i].quadric(checker.radii[i]), motions[j].quadric(checker.radii[j])
 
         def status(t):
             return static_status_matrices(quadric_at(*qa, t), quadric_at(*qb, t))

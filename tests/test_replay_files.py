@@ -12,6 +12,7 @@ import pytest
 
 from mjccd import replay
 from mjccd.files import MANIFEST
+from mjccd.mujoco import ModelAdapter
 
 from test_replay import FIRST, LAST, MODEL, ROOT, TRAJ, short_traj  # noqa: F401 (the fixture)
 
@@ -71,15 +72,15 @@ def test_failed_write_leaves_nothing(tmp_path, capsys, monkeypatch, short_traj):
 def test_ctrl_c_stops_between_chunks(tmp_path, monkeypatch, short_traj):
     """A SIGINT inside a chunk lets the chunk finish, then stops the replay before any file is written."""
     stepped = []
-    step = replay.FrameChecker.step
+    step = ModelAdapter.check
 
-    def step_and_press_ctrl_c(self, *args):
+    def step_and_press_ctrl_c(self, *args, **kwargs):
         stepped.append(1)
         if len(stepped) == 6:
             os.kill(os.getpid(), signal.SIGINT)
-        return step(self, *args)
+        return step(self, *args, **kwargs)
 
-    monkeypatch.setattr(replay.FrameChecker, "step", step_and_press_ctrl_c)
+    monkeypatch.setattr(ModelAdapter, "check", step_and_press_ctrl_c)
     out = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt):
         replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, chunk_frames=4)

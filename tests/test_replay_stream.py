@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from mjccd import npz_stream, replay
+from mjccd.mujoco import ModelAdapter
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "boxing.xml"
@@ -126,10 +127,10 @@ def test_reading_keeps_a_few_frames_in_memory(long_traj, boxing_model):
 
 def _refused(path, match, monkeypatch):
     """replay() refuses ``path`` with ``match`` before any frame interval is checked."""
-    def no_work(*args):
+    def no_work(*args, **kwargs):
         raise AssertionError("a frame was replayed before the trajectory was refused")
 
-    monkeypatch.setattr(replay.FrameChecker, "step", no_work)
+    monkeypatch.setattr(ModelAdapter, "check", no_work)
     with pytest.raises(replay.ReplayError) as info:
         replay.replay(MODEL, path, progress=False, render=False)
     assert str(info.value) == f"{path}: {match}"

@@ -208,11 +208,11 @@ def test_min_motion_leaves_out_slow_pairs_only():
     """A min_motion of 3.75 leaves out pair 2 (closing 3.5) alone: pair 1 (closing 4) stays the first
     contact and pair 2 no longer reports one."""
     scene, p0, p1 = three_pairs()
-    scene.min_motion[:] = 3.75
+    scene.set_min_motion(np.full(3, 3.75))
     full = scene.step(p0, p1, all_pairs=True, new_contacts_only=True)
     assert [c.pair for c in full.contacts] == [1]
     assert full.first.time == pytest.approx(0.25, abs=1e-12)
-    scene.min_motion[:] = 0.0
+    scene.set_min_motion(np.zeros(3))
     assert [c.pair for c in scene.step(p0, p1, all_pairs=True, new_contacts_only=True).contacts] == [1, 2]
 
 
@@ -372,7 +372,7 @@ def test_run_flags_uncertain_frames(python_kernel):
     assert run.uncertain.dtype == np.int8 and run.uncertain.tolist() == [1, 0]
     assert run.time[0] == 0.2 and run.pair[0] == 1 and not run.point[0].any()
     # colliding: only the pair overlapping at the start; the uncertain one is counted apart
-    assert run.counters.shape == (2, 9) and run.counters[0, 8] == 1 and run.counters[0, 6] == 1
+    assert run.counters.shape == (2, 10) and run.counters[0, 8] == 1 and run.counters[0, 6] == 1
 
 
 def test_frame_result_from_kernel_arrays():
@@ -383,7 +383,7 @@ def test_frame_result_from_kernel_arrays():
     outcome = np.array([EXACT_HIT, UNCERTAIN], np.int8)
     times, times_hi = np.array([0.6, 0.1]), np.array([123.0, 0.4])
     points, normals = np.array([[1.0, 2, 3], [0, 0, 0]]), np.array([[0.0, 0, 1], [0, 0, 0]])
-    counters = np.array([2, 0, 0, 0, 0, 2, 1, 0, 1])
+    counters = np.array([2, 0, 0, 0, 0, 2, 1, 0, 1, 0])
     res = frame_result(pairs, 1, outcome, times, times_hi, points, normals, counters,
                        (np.array([[0.6, 0.7]]), np.array([0])))
     assert res.certainty == "uncertain" and res.counters.uncertain == 1 and res.counters.colliding == 1
@@ -395,3 +395,167 @@ def test_frame_result_from_kernel_arrays():
     assert hit.point.tolist() == [1, 2, 3]
     only = frame_result(pairs, 0, outcome, times, times_hi, points, normals, counters)
     assert only.certainty == "certified" and only.contacts == ()
+
+
+# ---------------------------------------------------------------- the batch API: first_contact, may_touch, min_motion
+
+
+def _same_first(fc, first):
+    """A FirstContact equals the PairContact that step() gives as its first contact (arrays bit for bit)."""
+    if first is None:
+        return fc is None
+    if fc is None or (fc.pair, fc.time, fc.bracket) != (first.pair, first.time, first.bracket):
+        return False
+    return all((a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
+               for a, b in ((fc.point, first.point), (fc.normal, first.normal)))
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+@pytest.mark.parametrize("new_only", [False, True])
+def test_first_contact_equals_step_first(motion, new_only):
+    """Frame after frame (the plane cache carried over in both scenes): the lean answer is step()'s first contact,
+    and both leave the same plane cache behind."""
+    radii, poses = random_frames(11 if motion == "rigid" else 12, 12)
+    stepped, lean = Scene(radii, motion=motion), Scene(radii, motion=motion)
+    kinds = set()
+    for f in range(len(poses) - 1):
+        res = stepped.step(poses[f], poses[f + 1], new_contacts_only=new_only)
+        fc = lean.first_contact(poses[f], poses[f + 1], new_contacts_only=new_only)
+        assert _same_first(fc, res.first), (f, fc, res.first)
+        kinds.add("none" if fc is None else ("t0" if fc.point is None else "touch"))
+        a, b = stepped.workspace.arrays, lean.workspace.arrays
+        assert np.array_equal(a.cache_kind, b.cache_kind) and np.array_equal(a.cache_n, b.cache_n)
+    assert "touch" in kinds and (new_only or "t0" in kinds), kinds
+    assert stepped.workspace.arrays.cache_kind.any()  # the cache was used
+
+
+def test_uncertain_first_contact_equals_step_first(python_kernel):
+    """See three_pairs: pair 1 hits a limit, bracket [0.2, 0.3]: first_contact gives the same uncertain answer."""
+    python_kernel({10.0: _limit(0.2, 0.3)})
+    scene, p0, p1 = three_pairs()
+    fc = scene.first_contact(p0, p1, new_contacts_only=True)
+    assert fc == (1, 0.2, None, None, (0.2, 0.3))
+    assert _same_first(fc, scene.step(p0, p1, new_contacts_only=True).first)
+
+
+def _new_contacts_exact(radii, pairs, p0, p1, motion):
+    """Pairs with a new contact (separate at the start, a contact or an uncertain answer later) by the pairwise
+    exact solver, no filter in front."""
+    cls = mjccd.Rigid if motion == "rigid" else mjccd.Affine
+    out = []
+    for k, (i, j) in enumerate(pairs):
+        c = mjccd.first_contact(mjccd.Ellipsoid(radii[i]), cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
+                                mjccd.Ellipsoid(radii[j]), cls(p0[j, :3], p0[j, 3:], p1[j, :3], p1[j, 3:]))
+        if c is not None and c.status_at_start == "separate":
+            out.append(k)
+    return out
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+def test_may_touch_false_means_no_new_contact(motion):
+    """Random frames, crowded and spread out: may_touch False only where neither the exact solver on every
+    pair nor first_contact(new_contacts_only=True) finds a new contact; it does clear frames, and it does not
+    clear frames with one."""
+    seen = {True: 0, False: 0}
+    for seed, spread in ((21, 1.0), (22, 3.0), (23, 6.0)):
+        radii, poses = random_frames(seed, 8)
+        poses[:, :, :3] *= spread
+        scene = Scene(radii, motion=motion)
+        for f in range(len(poses) - 1):
+            may = scene.may_touch(poses[f], poses[f + 1])
+            assert may is True or may is False
+            seen[may] += 1
+            if not may:
+                assert _new_contacts_exact(radii, scene.pairs, poses[f], poses[f + 1], motion) == [], (seed, f)
+                assert scene.first_contact(poses[f], poses[f + 1], new_contacts_only=True) is None
+            elif scene.first_contact(poses[f], poses[f + 1], new_contacts_only=True) is not None:
+                seen["hit"] = seen.get("hit", 0) + 1
+    assert seen[True] > 0 and seen[False] > 0 and seen.get("hit", 0) > 0, seen
+
+
+def _grazing(gap, motion, turn, y0=-0.8):
+    """A flat ellipsoid at the origin and a ball sliding past its face from y = ``y0`` to 0.8, closest at ``gap``
+    (times the radii sum; negative: overlapping) at y = 0; with ``turn`` the flat one also turns a little."""
+    radii = np.array([[0.2, 1.0, 0.7], [0.3, 0.3, 0.3]])
+    x = 0.2 + 0.3 + gap * 1.3
+    p0 = np.array([[0, 0, 0, 1, 0, 0, 0], [x, y0, 0, 1, 0, 0, 0]], float)
+    p1 = p0.copy()
+    p1[1, 1] = 0.8
+    if turn:
+        p1[0, 3:] = [np.cos(turn / 2), 0, 0, np.sin(turn / 2)]
+    return Scene(radii, motion=motion), radii, p0, p1
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine"])
+def test_may_touch_near_grazing(motion):
+    """Gaps from 1e-3 down to 1e-12 of the size, either side of zero, with and without a turn: may_touch is
+    False only when the exact solver finds no new contact.  Clear gaps are cleared (for a turning rigid body
+    only by its largest semi-axis: not here), grazes within the slab margin and contacts are not, and a ball
+    overlapping the face at the start and sliding off is no new contact."""
+    cleared = []
+    for gap in (1e-3, 1e-5, 1e-7, 1e-9, 1e-12, 0.0, -1e-12, -1e-9, -1e-5):
+        for turn in (0.0, 1e-6, 0.05):
+            scene, radii, p0, p1 = _grazing(gap, motion, turn)
+            if not scene.may_touch(p0, p1):
+                cleared.append((gap, turn))
+                assert _new_contacts_exact(radii, scene.pairs, p0, p1, motion) == [], (gap, turn)
+                assert scene.first_contact(p0, p1, new_contacts_only=True) is None
+            elif gap == -1e-5 and turn == 0.0:
+                assert _new_contacts_exact(radii, scene.pairs, p0, p1, motion) == [0]
+    assert {(1e-3, 0.0), (1e-5, 0.0)} <= set(cleared) and all(gap > 1e-9 for gap, _ in cleared), cleared
+    assert ((1e-5, 1e-6) in cleared) == (motion == "affine"), cleared
+    scene, radii, p0, p1 = _grazing(-1e-3, motion, 0.0, y0=0.0)  # overlapping at the start, then sliding off
+    assert not scene.may_touch(p0, p1) and _new_contacts_exact(radii, scene.pairs, p0, p1, motion) == []
+    assert scene.first_contact(p0, p1).time == 0.0
+
+
+def test_too_slow_outcome_and_counter():
+    """min_motion 3.75 (see three_pairs: pair 0 does not move, pair 1 closes 4, pair 2 closes 3.5), and a fourth
+    pair far away: pairs 0 and 2 are too slow (pair 0 overlapping, pair 2 touching later), pair 3 too: policy
+    before filters, whatever the spheres say; with min_motion 3 only pair 0 and the far pair are slow (the far
+    one closing 3.5 is culled by its spheres instead)."""
+    scene, p0, p1 = three_pairs()
+    far0 = np.array([[40, 0, 0, 1, 0, 0, 0], [50, 0, 0, 1, 0, 0, 0]], float)
+    far1 = far0.copy()
+    far1[1, 0] = 46.5
+    p0, p1 = np.concatenate([p0, far0]), np.concatenate([p1, far1])
+    scene = Scene(np.full((8, 3), 0.5), pairs=[[0, 1], [2, 3], [4, 5], [6, 7]])
+    arrays = scene.workspace.arrays
+    from mjccd.scene import EXACT_HIT, OUTCOME_NAMES, SPHERE, TOO_SLOW
+
+    assert OUTCOME_NAMES[TOO_SLOW] == "too_slow" and TOO_SLOW == 8
+    scene.set_min_motion(np.full(4, 3.75))
+    res = scene.step(p0, p1)
+    assert arrays.outcome.tolist() == [TOO_SLOW, EXACT_HIT, TOO_SLOW, TOO_SLOW]
+    assert (res.counters.too_slow, res.counters.sphere_culled, res.counters.overlapping_t0) == (3, 0, 0)
+    assert res.first.pair == 1 and arrays.entry[[0, 2, 3]].tolist() == [-1.0, -1.0, -1.0]
+    scene.set_min_motion([3.0, 3.0, 3.0, 3.0])
+    res = scene.step(p0, p1)
+    assert arrays.outcome[[0, 3]].tolist() == [TOO_SLOW, SPHERE]
+    assert (res.counters.too_slow, res.counters.sphere_culled) == (1, 1)
+    run = scene.run(np.stack([p0, p1]))
+    assert run.counters[0, 9] == 1 and run.counters[0, 1] == 1 and run.outcomes[0, 0] == TOO_SLOW
+    scene.set_min_motion(np.zeros(4))
+    res = scene.step(p0, p1)
+    assert res.counters.too_slow == 0 and res.first.pair == 0 and res.first.time == 0.0
+
+
+def test_set_min_motion_refuses_bad_values():
+    scene, _, _ = three_pairs()
+    with pytest.raises(ValueError, match=r"^min_motion: expected shape 3, got \(2,\)$"):
+        scene.set_min_motion([1.0, 2.0])
+    with pytest.raises(ValueError, match=r"^min_motion: contains NaN or infinity$"):
+        scene.set_min_motion([0.0, np.nan, 1.0])
+    with pytest.raises(ValueError, match=r"^min_motion: contains NaN or infinity$"):
+        scene.set_min_motion([0.0, 1.0, np.inf])
+    with pytest.raises(ValueError, match=r"^min_motion\[1\]: expected a distance >= 0, got -0.5$"):
+        scene.set_min_motion([0.0, -0.5, 1.0])
+    with pytest.raises(ValueError, match=r"^min_motion: expected numbers, got 'fast'$"):
+        scene.set_min_motion("fast")
+    with pytest.raises(mjccd.errors.InputError):
+        scene.set_min_motion(2.0)  # one number for every pair: not (P,)
+    assert scene.min_motion.tolist() == [0.0, 0.0, 0.0]  # nothing was set
+    with pytest.raises(ValueError, match="read-only"):
+        scene.min_motion[0] = 1.0
+    scene.set_min_motion(np.array([1, 2, 3]))  # integers are distances too
+    assert scene.min_motion.tolist() == [1.0, 2.0, 3.0]

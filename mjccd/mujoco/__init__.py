@@ -1,13 +1,14 @@
 """MuJoCo integration: fitted ellipsoids on bodies, exact motions between steps, the step monitor, guarded stepping."""
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model, load_ellipsoids
-from mjccd.mujoco.monitor import (CCDMonitor, StepContact, StepReport, default_pairs, excluded_body_pairs,
-                                  pairs_from_bodies)
-from mjccd.mujoco.motions import (MOTIONS, Kinematics, State, capture, interpolate_qpos,
-                                  motions_between)
+from mjccd.mujoco.adapter import ModelAdapter, StepContact, StepReport, load_model, motions_between
+from mjccd.mujoco.monitor import CCDMonitor
+from mjccd.mujoco.pairs import character_pairs, default_pairs, excluded_body_pairs, pairs_from_bodies, select_pairs
+from mjccd.mujoco.motions import MOTIONS, Kinematics, State, capture, interpolate_qpos
 from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, GuardReport, geom_ellipsoids
 
 __all__ = [
     "CCDMonitor", "EllipsoidSet", "GuardReport", "GuardedStepper", "GuardedWrapper", "Kinematics", "MOTIONS",
-    "State", "StepContact", "StepReport", "body_label", "capture", "default_pairs", "excluded_body_pairs", "fit_model",
-    "geom_ellipsoids", "interpolate_qpos", "load_ellipsoids", "motions_between", "pairs_from_bodies",
+    "ModelAdapter", "State", "StepContact", "StepReport", "body_label", "capture", "character_pairs",
+    "default_pairs", "excluded_body_pairs", "fit_model", "geom_ellipsoids", "interpolate_qpos", "load_ellipsoids",
+    "load_model", "motions_between", "pairs_from_bodies", "select_pairs",
 ]

@@ -17,6 +17,7 @@ from mjccd.fitting import Shape, fit_shapes
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
 
 FORMAT_VERSION = 1
+BOUND_GROUP = 5  # the geom group mjccd fit writes its bounding ellipsoids to
 SUPPORTED = {
     mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
     mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
@@ -192,6 +193,36 @@ def load_ellipsoids(path):
 
 
 # ---------------------------------------------------------------- fitting a model
+
+
+def geom_ellipsoids(model, group=BOUND_GROUP, *, any_group=False):
+    """:class:`EllipsoidSet` made of the model's ellipsoid geoms in ``group`` (e.g. fitted bounding geoms).
+
+    Each geom becomes one ellipsoid fixed in its body at the geom's local pose.  With ``any_group``,
+    a model without ellipsoid geoms in ``group`` gives all its ellipsoid geoms instead.
+    """
+    if not isinstance(model, mujoco.MjModel):
+        raise InputTypeError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if isinstance(group, (bool, np.bool_)) or not isinstance(group, (int, np.integer)):
+        raise InputTypeError(f"group: expected an integer geom group in 0..5, got {group!r}")
+    if not 0 <= int(group) < 6:
+        raise InputError(f"group: expected an integer geom group in 0..5, got {group!r}")
+    ellipsoid = model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID
+    ids = np.flatnonzero(ellipsoid & (model.geom_group == int(group)))
+    if len(ids) == 0 and any_group:
+        ids = np.flatnonzero(ellipsoid)
+    if len(ids) == 0:
+        raise InputError(f"group: the model has no ellipsoid geom{'' if any_group else f' in group {int(group)}'}")
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"#{int(g)}" for g in ids]
+    low, high = _validate.LENGTH_RANGE
+    radii = model.geom_size[ids]
+    bad = np.flatnonzero(~np.all((radii >= low) & (radii <= high), axis=1))  # NaN fails too
+    if len(bad):
+        raise InputError(f"ellipsoid {names[bad[0]]!r} has semi-axes {radii[bad[0]].tolist()}; supported: "
+                         f"{low:g} to {high:g} m")
+    return EllipsoidSet(bodies=[body_label(model, b) for b in model.geom_bodyid[ids]],
+                        radii=model.geom_size[ids].copy(), positions=model.geom_pos[ids].copy(),
+                        quaternions=model.geom_quat[ids].copy(), geoms=names)
 
 
 def geom_shape(model, geom_id):

@@ -7,10 +7,11 @@ import numba
 import numpy as np
 
 from mjccd.errors import InputError, InputTypeError
-from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.ellipsoids import EllipsoidSet, geom_ellipsoids  # noqa: F401 (re-exported)
 from mjccd.mujoco.monitor import (BAD_COUNTS, BAD_STATE_WARNINGS, CCDMonitor, StepCheck,  # noqa: F401 (re-exported)
                                   step_count, went_bad)
-from mjccd.mujoco.motions import body_path, capture
+from mjccd.mujoco.chains import body_path
+from mjccd.mujoco.motions import capture
 from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
@@ -39,26 +40,6 @@ class GuardReport:
     rollbacks: int
     exhausted: bool
     unstable: bool = False
-
-
-def geom_ellipsoids(model, group=5):
-    """:class:`EllipsoidSet` made of the model's ellipsoid geoms in ``group`` (e.g. fitted bounding geoms).
-
-    Each geom becomes one ellipsoid fixed in its body at the geom's local pose.
-    """
-    if not isinstance(model, mujoco.MjModel):
-        raise InputTypeError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
-    if isinstance(group, (bool, np.bool_)) or not isinstance(group, (int, np.integer)):
-        raise InputTypeError(f"group: expected an integer geom group in 0..5, got {group!r}")
-    if not 0 <= int(group) < 6:
-        raise InputError(f"group: expected an integer geom group in 0..5, got {group!r}")
-    ids = np.flatnonzero((model.geom_type == mujoco.mjtGeom.mjGEOM_ELLIPSOID) & (model.geom_group == int(group)))
-    if len(ids) == 0:
-        raise InputError(f"group: the model has no ellipsoid geom in group {int(group)}")
-    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or f"#{int(g)}" for g in ids]
-    return EllipsoidSet(bodies=[body_label(model, b) for b in model.geom_bodyid[ids]],
-                        radii=model.geom_size[ids].copy(), positions=model.geom_pos[ids].copy(),
-                        quaternions=model.geom_quat[ids].copy(), geoms=names)
 
 
 def _positive(value, field, *, integer=False, allow_zero=False):
@@ -177,11 +158,11 @@ class GuardedStepper:
         self._qvel0 = self._state0[1 + model.nq:1 + model.nq + model.nv]
         self._opt = model.opt
         # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
-        self._fast = StepCheck(self.monitor) if self.monitor._scene is not None else None
+        self._fast = StepCheck(self.monitor) if self.monitor.scene is not None else None
         if self._fast is not None:
             thin = np.asarray(ellipsoids.radii, dtype=float).min(axis=1)
             pairs = self.monitor.pairs
-            self._fast.min_motion[:] = self.max_penetration * (thin[pairs[:, 0]] + thin[pairs[:, 1]])
+            self.monitor.scene.set_min_motion(self.max_penetration * (thin[pairs[:, 0]] + thin[pairs[:, 1]]))
             # the first step's setup, done here: the current poses recorded, so the first step costs what
             # every other step costs
             self._fast.begin(data)

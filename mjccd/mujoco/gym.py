@@ -2,8 +2,8 @@
 import gymnasium
 
 from mjccd.errors import InputTypeError
-from mjccd.mujoco.monitor import CCDMonitor, step_count
-from mjccd.mujoco.wrappers import SubstepRecorder, fitted_or_checked, _model_and_data
+from mjccd.mujoco.monitor import step_count
+from mjccd.mujoco.wrappers import model_and_data, substep_monitor
 
 
 class CCDGymWrapper(gymnasium.Wrapper):
@@ -24,20 +24,16 @@ class CCDGymWrapper(gymnasium.Wrapper):
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
                  all_pairs=False, report_overlapping=True, per="body"):
         super().__init__(env)
-        base, model, data = _model_and_data(env)
+        base, model, data = model_and_data(env)
         if not callable(getattr(base, "do_simulation", None)):
             raise InputTypeError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
-        self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
-        self.monitor = CCDMonitor(model, data, self.ellipsoids, pairs=pairs, motion=motion,
-                                  on_contact=on_contact, all_pairs=all_pairs,
-                                  report_overlapping=report_overlapping)
-        self._recorder = SubstepRecorder(self.monitor)
-        self.last_contacts = []
-        self.last_reports = []
-        self.last_unstable = False
+        self.ellipsoids, self.monitor, self._recorder = substep_monitor(
+            model, data, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact, all_pairs=all_pairs,
+            report_overlapping=report_overlapping)
+        self.last_contacts, self.last_reports, self.last_unstable = [], [], False
 
     def step(self, action):
-        base, model, data = _model_and_data(self.env)
+        base, model, data = model_and_data(self.env)
         recorder = self._recorder
         recorder.begin(data)
         original = base.do_simulation
@@ -51,9 +47,7 @@ class CCDGymWrapper(gymnasium.Wrapper):
             obs, reward, terminated, truncated, info = self.env.step(action)
         finally:
             del base.do_simulation
-        self.last_contacts = sorted(recorder.contacts, key=lambda c: c.time)
-        self.last_reports = list(recorder.reports)
-        self.last_unstable = recorder.unstable
+        self.last_contacts, self.last_reports, self.last_unstable = recorder.results()
         ccd = {key.split("/", 1)[1]: value for key, value in recorder.observation(model).items()}
         ccd["contacts"] = list(self.last_contacts)
         ccd["reports"] = list(self.last_reports)

@@ -158,6 +158,11 @@ class SubstepRecorder:
         """True when MuJoCo met a bad state in one of the steps recorded."""
         return any(r.unstable for r in self.reports)
 
+    def results(self):
+        """``(contacts, reports, unstable)`` of the control step: its contacts in time order, each step's
+        report, and whether MuJoCo met a bad state."""
+        return sorted(self.contacts, key=lambda c: c.time), list(self.reports), self.unstable
+
     def first(self):
         """The earliest contact of the control step, or None."""
         return min(self.contacts, key=lambda c: c.time) if self.contacts else None
@@ -172,6 +177,14 @@ class SubstepRecorder:
                 "ccd/contact_pair": np.array(c.body_ids, np.int32),
                 "ccd/contact_point": np.zeros(3) if c.point is None else c.point.copy(),
                 "ccd/contact_normal": np.zeros(3) if c.normal is None else c.normal.copy()}
+
+
+def substep_monitor(model, data, ellipsoids, per, **options):
+    """``(ellipsoids, monitor, recorder)`` of an environment wrapper: the ellipsoids fitted (or checked), the
+    :class:`~mjccd.mujoco.CCDMonitor` with ``options`` and the :class:`SubstepRecorder` of its substeps."""
+    ellipsoids = fitted_or_checked(model, ellipsoids, per)
+    monitor = CCDMonitor(model, data, ellipsoids, **options)
+    return ellipsoids, monitor, SubstepRecorder(monitor)
 
 
 def observation_specs():
@@ -215,14 +228,10 @@ class CCDWrapper(DelegatingEnvironment):
             raise InputError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
         physics = env.physics
         model = physics.model.ptr
-        self.ellipsoids = fitted_or_checked(model, ellipsoids, per)
-        self.monitor = CCDMonitor(model, physics.data.ptr, self.ellipsoids, pairs=pairs, motion=motion,
-                                  on_contact=on_contact, all_pairs=all_pairs,
-                                  report_overlapping=report_overlapping)
-        self._recorder = SubstepRecorder(self.monitor)
-        self.last_contacts = []
-        self.last_reports = []
-        self.last_unstable = False
+        self.ellipsoids, self.monitor, self._recorder = substep_monitor(
+            model, physics.data.ptr, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact,
+            all_pairs=all_pairs, report_overlapping=report_overlapping)
+        self.last_contacts, self.last_reports, self.last_unstable = [], [], False
 
     def _with_ccd(self, timestep, recorded):
         obs = collections.OrderedDict(timestep.observation)
@@ -233,9 +242,7 @@ class CCDWrapper(DelegatingEnvironment):
         return timestep._replace(observation=obs)
 
     def reset(self):
-        self.last_contacts = []
-        self.last_reports = []
-        self.last_unstable = False
+        self.last_contacts, self.last_reports, self.last_unstable = [], [], False
         return self._with_ccd(self._env.reset(), False)
 
     def step(self, action):
@@ -255,9 +262,7 @@ class CCDWrapper(DelegatingEnvironment):
             timestep = self._env.step(action)
         finally:
             del physics.step
-        self.last_contacts = sorted(recorder.contacts, key=lambda c: c.time)
-        self.last_reports = list(recorder.reports)
-        self.last_unstable = recorder.unstable
+        self.last_contacts, self.last_reports, self.last_unstable = recorder.results()
         return self._with_ccd(timestep, True)
 
     def observation_spec(self):
@@ -266,7 +271,7 @@ class CCDWrapper(DelegatingEnvironment):
         return spec
 
 
-def _model_and_data(env):
+def model_and_data(env):
     """(MjModel, MjData) of a Gymnasium MuJoCo environment."""
     base = getattr(env, "unwrapped", env)
     model, data = getattr(base, "model", None), getattr(base, "data", None)

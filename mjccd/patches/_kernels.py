@@ -8,10 +8,15 @@ Storage: every live sub-patch is one row of a pool, ``(N, 7)`` homogeneous contr
 ``(u0, v0, h, o)``; a search node is a pair of pool rows and a time interval. Pool rows
 are reference counted and recycled, so memory follows the live queue, not the history.
 """
+from collections import namedtuple
+
 import numpy as np
 import numba
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+# small helpers of hot loops; only ones on scalars or called once per node: array arguments of an
+# inlined helper cost reference counting in the loops that call it
+_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 INF = np.inf
 
@@ -211,29 +216,31 @@ def _axis_gaps(pa0, pa1, sa, na, pb0, pb1, sb, nb, ex, ey, ez, tl, tu, ws, out, 
                               out, k)
 
 
+@_inline
+def _escape(out, k, x, end, limit):
+    """Move x out of every open interval ``out[:k]`` through their ``end`` (1: upper, pushing x up;
+    0: lower, pushing it down), sweep after sweep, until it lies in none or has passed ``limit``."""
+    changed = True
+    while changed:
+        changed = False
+        for q in range(k):
+            if out[q, 0] < x and x < out[q, 1]:
+                x = out[q, end]
+                changed = True
+        if (x > limit) if end == 1 else (x < limit):
+            return x
+    return x
+
+
 @_jit
 def _feasible_hull(out, k, tl, tu):
     """Smallest and largest t in [tl, tu] outside every open interval ``out[:k]``."""
-    lo = tl
-    changed = True
-    while changed:
-        changed = False
-        for q in range(k):
-            if out[q, 0] < lo and lo < out[q, 1]:
-                lo = out[q, 1]
-                changed = True
-        if lo > tu:
-            return INF, -INF
-    hi = tu
-    changed = True
-    while changed:
-        changed = False
-        for q in range(k):
-            if out[q, 0] < hi and hi < out[q, 1]:
-                hi = out[q, 0]
-                changed = True
-        if hi < tl:
-            return INF, -INF
+    lo = _escape(out, k, tl, 1, tu)
+    if lo > tu:
+        return INF, -INF
+    hi = _escape(out, k, tu, 0, tl)
+    if hi < tl:
+        return INF, -INF
     return lo, hi
 
 
@@ -307,6 +314,14 @@ def intersection_period(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_
     return lo, hi
 
 
+@_inline
+def _extend(lo, hi, b, a, s, tl, tu):
+    """(lo, hi) widened by the range over [tl, tu] of the line ``a t + b`` widened by s."""
+    v0 = b + a * tl
+    v1 = b + a * tu
+    return min(lo, min(v0, v1) - s), max(hi, max(v0, v1) + s)
+
+
 @_jit
 def swept_boxes_overlap(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_obb, ws):
     """Traditional test: do the boxes of the volumes swept over [tl, tu] overlap?"""
@@ -320,21 +335,11 @@ def swept_boxes_overlap(pa0, pa1, sa, fa, na, pb0, pb1, sb, fb, nb, tl, tu, use_
         amin = INF
         amax = -INF
         for i in range(na):
-            v0 = ws.ba[i] + ws.aa[i] * tl
-            v1 = ws.ba[i] + ws.aa[i] * tu
-            lo = min(v0, v1) - sa[i]
-            hi = max(v0, v1) + sa[i]
-            amin = min(amin, lo)
-            amax = max(amax, hi)
+            amin, amax = _extend(amin, amax, ws.ba[i], ws.aa[i], sa[i], tl, tu)
         bmin = INF
         bmax = -INF
         for i in range(nb):
-            v0 = ws.bb[i] + ws.ab[i] * tl
-            v1 = ws.bb[i] + ws.ab[i] * tu
-            lo = min(v0, v1) - sb[i]
-            hi = max(v0, v1) + sb[i]
-            bmin = min(bmin, lo)
-            bmax = max(bmax, hi)
+            bmin, bmax = _extend(bmin, bmax, ws.bb[i], ws.ab[i], sb[i], tl, tu)
         if amax < bmin or bmax < amin:
             return False
     return True
@@ -441,39 +446,26 @@ def euclidean(hom, n, margin, p0, p1, shift):
 
 @_jit
 def _child_region(kind, reg, c, out):
-    u0 = reg[0]
-    v0 = reg[1]
-    h = reg[2]
-    o = reg[3]
+    """Region ``(u0, v0, h, o)`` of child c of ``reg``, as in
+    :func:`mjccd.patches.primitives.child_regions`: a point keeps its own; curves halve, quads
+    quarter; a triangle's children are its corners (c = 0, 1, 2) and the middle one (c = 3,
+    orientation flipped)."""
+    u0, v0, h, o = reg[0], reg[1], reg[2], reg[3]
     hh = 0.5 * h
     if kind == 0:
-        out[0] = u0
-        out[1] = v0
-        out[2] = h
-        out[3] = o
+        u, v, w, side = u0, v0, h, o
     elif kind == 1:
-        out[0] = u0 + c * hh
-        out[1] = v0
-        out[2] = hh
-        out[3] = 1.0
+        u, v, w, side = u0 + c * hh, v0, hh, 1.0
     elif kind == 3:
-        out[0] = u0 + (c // 2) * hh
-        out[1] = v0 + (c % 2) * hh
-        out[2] = hh
-        out[3] = 1.0
+        u, v, w, side = u0 + (c // 2) * hh, v0 + (c % 2) * hh, hh, 1.0
     else:
-        out[2] = hh
-        out[3] = o
-        out[0] = u0
-        out[1] = v0
-        if c == 1:
-            out[0] = u0 + o * hh
-        elif c == 2:
-            out[1] = v0 + o * hh
-        elif c == 3:
-            out[0] = u0 + o * hh
-            out[1] = v0 + o * hh
-            out[3] = -o
+        u = u0 + o * hh if c == 1 or c == 3 else u0
+        v = v0 + o * hh if c == 2 or c == 3 else v0
+        w, side = hh, (-o if c == 3 else o)
+    out[0] = u
+    out[1] = v
+    out[2] = w
+    out[3] = side
 
 
 @_jit
@@ -504,8 +496,7 @@ def _subdivide(mat, hom, n, out):
 
 
 # ---------------------------------------------------------------------------- workspace
-Workspace = __import__("collections").namedtuple(
-    "Workspace", "aa ba ab bb oa ob c1a c1b c1x c2a c2b c2x axes gaps")
+Workspace = namedtuple("Workspace", "aa ba ab bb oa ob c1a c1b c1x c2a c2b c2x axes gaps")
 
 
 @_jit
@@ -537,6 +528,80 @@ def _grow1(a, cap):
     b = np.zeros(cap, a.dtype)
     b[:a.shape[0]] = a
     return b
+
+
+# ---------------------------------------------------------------------------- one side
+# The sub-patches of one side (A or B) live in a pool: rows ``pool`` (cap, N, 7) of homogeneous
+# control points, their regions ``reg`` (cap, 4), reference counts ``ref`` (the queued nodes
+# that use a row), and a stack ``free[:nfree]`` of rows to recycle; rows ``top`` on were never used.
+@_jit
+def _make_pool(roots, kind):
+    """A pool holding the primitives ``roots`` (K, N, 7) in rows 0..K-1, each over its whole region:
+    (pool, reg, ref, free)."""
+    k = roots.shape[0]
+    cap = max(64, 2 * k)
+    pool = np.empty((cap, roots.shape[1], 7))
+    reg = np.empty((cap, 4))
+    for i in range(k):
+        pool[i] = roots[i]
+        reg[i, 0] = 0.0
+        reg[i, 1] = 0.0
+        reg[i, 2] = 1.0 if kind != 0 else 0.0
+        reg[i, 3] = 1.0
+    return pool, reg, np.zeros(cap, np.int64), np.empty(cap, np.int64)
+
+
+@_jit
+def _grow_pool(pool, reg, ref, free):
+    """The pool's arrays at twice the capacity."""
+    cap = 2 * pool.shape[0]
+    return _grow3(pool, cap), _grow2(reg, cap), _grow1(ref, cap), _grow1(free, cap)
+
+
+@_inline
+def _store(pool, reg, ref, free, nfree, top, hom, region):
+    """Copy a sub-patch and its region into a recycled row, else into row ``top`` (the caller grows
+    a full pool first: :func:`_grow_pool`); returns (the row, nfree, top)."""
+    if nfree > 0:
+        nfree -= 1
+        j = free[nfree]
+    else:
+        j = top
+        top += 1
+    pool[j] = hom
+    reg[j] = region
+    ref[j] = 0
+    return j, nfree, top
+
+
+@_inline
+def _release(ref, free, nfree, i):
+    """One queued node fewer uses row i; an unused row goes on the free stack. Returns nfree."""
+    ref[i] -= 1
+    if ref[i] == 0:
+        free[nfree] = i
+        nfree += 1
+    return nfree
+
+
+@_jit
+def _make_children(count, n):
+    """Scratch for the ``count`` children of a primitive with n control points: rows, regions,
+    Euclidean control points at t = 0 and 1, contour shifts, OBB frames, pool rows."""
+    return (np.empty((count, n, 7)), np.empty((count, 4)), np.empty((count, n, 3)),
+            np.empty((count, n, 3)), np.empty((count, n)), np.empty((count, 3, 3)),
+            np.empty(count, np.int64))
+
+
+@_inline
+def _child(sub, pool, reg, row, kind, corners, n, margin, t_frame, ch, rg, e0, e1, sh, fr, c):
+    """Child c of pool row ``row`` (``sub``: the subdivision matrices) into row c of the scratch
+    arrays: its control points, region, Euclidean control points and shifts, and OBB frame from its
+    shape at t_frame."""
+    _subdivide(sub[c], pool[row], n, ch[c])
+    _child_region(kind, reg[row], c, rg[c])
+    euclidean(ch[c], n, margin, e0[c], e1[c], sh[c])
+    frame(e0[c], e1[c], t_frame, corners, fr[c])
 
 
 # ---------------------------------------------------------------------------- heap
@@ -585,13 +650,11 @@ def _scale(roots):
 
 @_jit
 def _sift_up(hf, hi, k):
-    while k > 0:
+    p = (k - 1) // 2
+    while k > 0 and _less(hf, k, p):
+        _swap(hf, hi, k, p)
+        k = p
         p = (k - 1) // 2
-        if _less(hf, k, p):
-            _swap(hf, hi, k, p)
-            k = p
-        else:
-            break
 
 
 @_jit
@@ -608,6 +671,21 @@ def _sift_down(hf, hi, n):
             k = c
         else:
             break
+
+
+@_inline
+def _push(hf, hi, nh, lo, up, width, quantum, ia, ib, pair):
+    """Queue the node of pool rows (ia, ib) of root pair ``pair`` over [lo, up] (room for it is
+    there); returns the new count."""
+    hf[nh, 0] = lo
+    hf[nh, 1] = up
+    hf[nh, 2] = width if quantum > 0.0 else 0.0
+    hf[nh, 3] = np.floor(lo / quantum) if quantum > 0.0 else lo
+    hi[nh, 0] = ia
+    hi[nh, 1] = ib
+    hi[nh, 2] = pair
+    _sift_up(hf, hi, nh)
+    return nh + 1
 
 
 # ---------------------------------------------------------------------------- search
@@ -637,53 +715,17 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
     """
     na = roots_a.shape[1]
     nb = roots_b.shape[1]
-    ca_n = sub_a.shape[0]
-    cb_n = sub_b.shape[0]
     ws = make_workspace(max(na, nb))
     # children scratch
-    chA = np.empty((ca_n, na, 7))
-    rgA = np.empty((ca_n, 4))
-    eA0 = np.empty((ca_n, na, 3))
-    eA1 = np.empty((ca_n, na, 3))
-    shA = np.empty((ca_n, na))
-    frA = np.empty((ca_n, 3, 3))
-    idxA = np.empty(ca_n, np.int64)
-    chB = np.empty((cb_n, nb, 7))
-    rgB = np.empty((cb_n, 4))
-    eB0 = np.empty((cb_n, nb, 3))
-    eB1 = np.empty((cb_n, nb, 3))
-    shB = np.empty((cb_n, nb))
-    frB = np.empty((cb_n, 3, 3))
-    idxB = np.empty(cb_n, np.int64)
+    chA, rgA, eA0, eA1, shA, frA, idxA = _make_children(sub_a.shape[0], na)
+    chB, rgB, eB0, eB1, shB, frB, idxB = _make_children(sub_b.shape[0], nb)
     # pools
-    ka = roots_a.shape[0]
-    kb = roots_b.shape[0]
-    capA = max(64, 2 * ka)
-    poolA = np.empty((capA, na, 7))
-    regA = np.empty((capA, 4))
-    refA = np.zeros(capA, np.int64)
-    freeA = np.empty(capA, np.int64)
+    poolA, regA, refA, freeA = _make_pool(roots_a, kind_a)
+    poolB, regB, refB, freeB = _make_pool(roots_b, kind_b)
     nfreeA = 0
-    topA = ka
-    capB = max(64, 2 * kb)
-    poolB = np.empty((capB, nb, 7))
-    regB = np.empty((capB, 4))
-    refB = np.zeros(capB, np.int64)
-    freeB = np.empty(capB, np.int64)
     nfreeB = 0
-    topB = kb
-    for i in range(ka):
-        poolA[i] = roots_a[i]
-        regA[i, 0] = 0.0
-        regA[i, 1] = 0.0
-        regA[i, 2] = 1.0 if kind_a != 0 else 0.0
-        regA[i, 3] = 1.0
-    for i in range(kb):
-        poolB[i] = roots_b[i]
-        regB[i, 0] = 0.0
-        regB[i, 1] = 0.0
-        regB[i, 2] = 1.0 if kind_b != 0 else 0.0
-        regB[i, 3] = 1.0
+    topA = roots_a.shape[0]
+    topB = roots_b.shape[0]
     # heap: floats (t_lo, t_hi, width, bucket), ints (pool a, pool b, root pair). With
     # depth_first_ties, lower ends within one time quantum (delta / 16) count as ties and
     # deeper nodes go first, so nearly simultaneous candidates (face contact) are refined
@@ -718,22 +760,14 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                 capH *= 2
                 hf = _grow2(hf, capH)
                 hi = _grow2(hi, capH)
-            hf[nh, 0] = lo
-            hf[nh, 1] = up
-            hf[nh, 2] = max(regA[ia, 2], regB[ib, 2]) if quantum > 0.0 else 0.0
-            hf[nh, 3] = np.floor(lo / quantum) if quantum > 0.0 else lo
-            hi[nh, 0] = ia
-            hi[nh, 1] = ib
-            hi[nh, 2] = p
+            nh = _push(hf, hi, nh, lo, up, max(regA[ia, 2], regB[ib, 2]), quantum, ia, ib, p)
             refA[ia] += 1
             refB[ib] += 1
-            nh += 1
-            _sift_up(hf, hi, nh - 1)
-    for i in range(ka):
+    for i in range(roots_a.shape[0]):
         if refA[i] == 0:
             freeA[nfreeA] = i
             nfreeA += 1
-    for i in range(kb):
+    for i in range(roots_b.shape[0]):
         if refB[i] == 0:
             freeB[nfreeB] = i
             nfreeB += 1
@@ -803,14 +837,8 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
             if not manifold or found >= max_points:
                 nh = 0
                 break
-            refA[ia] -= 1
-            if refA[ia] == 0:
-                freeA[nfreeA] = ia
-                nfreeA += 1
-            refB[ib] -= 1
-            if refB[ib] == 0:
-                freeB[nfreeB] = ib
-                nfreeB += 1
+            nfreeA = _release(refA, freeA, nfreeA, ia)
+            nfreeB = _release(refB, freeB, nfreeB, ib)
             continue
         if found > 0:
             # manifold mode: drop nodes whose A part lies inside a found point's ball
@@ -832,28 +860,20 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                     covered = True
                     break
             if covered:
-                refA[ia] -= 1
-                if refA[ia] == 0:
-                    freeA[nfreeA] = ia
-                    nfreeA += 1
-                refB[ib] -= 1
-                if refB[ib] == 0:
-                    freeB[nfreeB] = ib
-                    nfreeB += 1
+                nfreeA = _release(refA, freeA, nfreeA, ia)
+                nfreeB = _release(refB, freeB, nfreeB, ib)
                 continue
         # subdivide both sides
         t_frame = 0.0 if frames_at_step_start else tl
+        ca_n = sub_a.shape[0]
+        cb_n = sub_b.shape[0]
         for c in range(ca_n):
-            _subdivide(sub_a[c], poolA[ia], na, chA[c])
-            _child_region(kind_a, regA[ia], c, rgA[c])
-            euclidean(chA[c], na, margin, eA0[c], eA1[c], shA[c])
-            frame(eA0[c], eA1[c], t_frame, corners_a, frA[c])
+            _child(sub_a, poolA, regA, ia, kind_a, corners_a, na, margin, t_frame, chA, rgA, eA0,
+                   eA1, shA, frA, c)
             idxA[c] = ia if ca_n == 1 else -1
         for c in range(cb_n):
-            _subdivide(sub_b[c], poolB[ib], nb, chB[c])
-            _child_region(kind_b, regB[ib], c, rgB[c])
-            euclidean(chB[c], nb, margin, eB0[c], eB1[c], shB[c])
-            frame(eB0[c], eB1[c], t_frame, corners_b, frB[c])
+            _child(sub_b, poolB, regB, ib, kind_b, corners_b, nb, margin, t_frame, chB, rgB, eB0,
+                   eB1, shB, frB, c)
             idxB[c] = ib if cb_n == 1 else -1
         full = False
         for ca in range(ca_n):
@@ -881,64 +901,27 @@ def search(kind_a, corners_a, sub_a, roots_a, kind_b, corners_b, sub_b, roots_b,
                         hf = _grow2(hf, capH)
                         hi = _grow2(hi, capH)
                     if idxA[ca] < 0:
-                        if nfreeA > 0:
-                            nfreeA -= 1
-                            j = freeA[nfreeA]
-                        else:
-                            if topA == capA:
-                                capA *= 2
-                                poolA = _grow3(poolA, capA)
-                                regA = _grow2(regA, capA)
-                                refA = _grow1(refA, capA)
-                                freeA = _grow1(freeA, capA)
-                            j = topA
-                            topA += 1
-                        poolA[j] = chA[ca]
-                        regA[j] = rgA[ca]
-                        refA[j] = 0
-                        idxA[ca] = j
+                        if nfreeA == 0 and topA == poolA.shape[0]:
+                            poolA, regA, refA, freeA = _grow_pool(poolA, regA, refA, freeA)
+                        idxA[ca], nfreeA, topA = _store(poolA, regA, refA, freeA, nfreeA, topA,
+                                                        chA[ca], rgA[ca])
                     if idxB[cb] < 0:
-                        if nfreeB > 0:
-                            nfreeB -= 1
-                            j = freeB[nfreeB]
-                        else:
-                            if topB == capB:
-                                capB *= 2
-                                poolB = _grow3(poolB, capB)
-                                regB = _grow2(regB, capB)
-                                refB = _grow1(refB, capB)
-                                freeB = _grow1(freeB, capB)
-                            j = topB
-                            topB += 1
-                        poolB[j] = chB[cb]
-                        regB[j] = rgB[cb]
-                        refB[j] = 0
-                        idxB[cb] = j
-                    hf[nh, 0] = lo
-                    hf[nh, 1] = up
-                    hf[nh, 2] = max(rgA[ca, 2], rgB[cb, 2]) if quantum > 0.0 else 0.0
-                    hf[nh, 3] = np.floor(lo / quantum) if quantum > 0.0 else lo
-                    hi[nh, 0] = idxA[ca]
-                    hi[nh, 1] = idxB[cb]
-                    hi[nh, 2] = pr
+                        if nfreeB == 0 and topB == poolB.shape[0]:
+                            poolB, regB, refB, freeB = _grow_pool(poolB, regB, refB, freeB)
+                        idxB[cb], nfreeB, topB = _store(poolB, regB, refB, freeB, nfreeB, topB,
+                                                        chB[cb], rgB[cb])
+                    nh = _push(hf, hi, nh, lo, up, max(rgA[ca, 2], rgB[cb, 2]), quantum, idxA[ca],
+                               idxB[cb], pr)
                     refA[idxA[ca]] += 1
                     refB[idxB[cb]] += 1
-                    nh += 1
-                    _sift_up(hf, hi, nh - 1)
                 if full:
                     break
             if full:
                 break
         if nh > peak:
             peak = nh
-        refA[ia] -= 1
-        if refA[ia] == 0:
-            freeA[nfreeA] = ia
-            nfreeA += 1
-        refB[ib] -= 1
-        if refB[ib] == 0:
-            freeB[nfreeB] = ib
-            nfreeB += 1
+        nfreeA = _release(refA, freeA, nfreeA, ia)
+        nfreeB = _release(refB, freeB, nfreeB, ib)
         if full:
             # put the popped node's bound back as the answer's lower bound
             status = MAX_NODES

@@ -204,16 +204,17 @@ def generate(folder, rng):
         np.savez(folder / name, **arrays)
         cases.append(FuzzCase(label, ["replay", str(BOXING), name, "--no-render"], (name,)))
 
+    # a hinge may stand anywhere, but beyond pi the chain motion cannot follow a turn of pi or more in one frame
     wrapped = qpos.copy()
-    wrapped[2, 3] = np.pi
+    wrapped[2, 3] = wrapped[1, 3] + 4.0
     np.savez(folder / "wrapped.npz", qpos=wrapped, time=time)
-    cases.append(FuzzCase("hinge at pi with the chain motion", ["replay", model, "wrapped.npz", "--motion", "chain",
-                                                                 "--no-render"], ("wrapped.npz",)))
+    cases.append(FuzzCase("hinge turning by 4 rad in a frame with the chain motion",
+                          ["replay", model, "wrapped.npz", "--motion", "chain", "--no-render"], ("wrapped.npz",)))
     wrapped_keys = keys.copy()
-    wrapped_keys[1, 0] = -4.0
+    wrapped_keys[0, 0], wrapped_keys[1, 0] = 0.0, -4.0
     np.savez(folder / "keywrap.npz", qpos=qpos, time=time, keyframes=wrapped_keys)
-    cases.append(FuzzCase("keyframe hinge beyond pi", ["replay", model, "keywrap.npz", "--intervals", "--no-render"],
-                          ("keywrap.npz",)))
+    cases.append(FuzzCase("keyframe hinge turning by 4 rad", ["replay", model, "keywrap.npz", "--intervals",
+                                                              "--no-render"], ("keywrap.npz",)))
     nan_keys = keys.copy()
     nan_keys[0, 2] = np.nan
     np.savez(folder / "keynan.npz", qpos=qpos, time=time, keyframes=nan_keys)

@@ -1,0 +1,382 @@
+"""The one binding of a MuJoCo model to the CCD core: ellipsoid poses of states, motions, pairs, the checks.
+
+:class:`ModelAdapter` is what the monitor, guarded stepping, replay, :mod:`mjccd.testing` and the
+environment wrappers all use to ask "what touches between these two states".  It owns the fitted
+:class:`~mjccd.mujoco.EllipsoidSet` bound to the model's bodies, forward kinematics on a private
+``MjData`` (:class:`~mjccd.mujoco.Kinematics`), the pairs (:mod:`mjccd.mujoco.pairs`), and the
+checker of the motion model:
+
+* ``rigid`` and ``affine``: a :class:`mjccd.scene.Scene` fed the ellipsoid poses at both ends;
+* ``chain``: the joints of each ellipsoid's kinematic chain (:class:`~mjccd.mujoco.chains.ChainLayout`),
+  pairs decided by the chain filters (:class:`mjccd.chain_bounds.ChainFilter`) and, when they cannot,
+  by the exact solver on each ellipsoid's :class:`mjccd.Chain`.
+
+Answers come back as :class:`StepReport` and :class:`StepContact` in simulation time and body names.
+"""
+import pathlib
+import sys
+from dataclasses import dataclass, fields
+from functools import cached_property
+
+import mujoco
+import numpy as np
+
+from mjccd import chain_bounds as cb
+from mjccd.ccd import first_contact
+from mjccd.errors import InputError, InputTypeError
+from mjccd.motion import Affine, Rigid
+from mjccd.quadric import Ellipsoid, static_status_code
+from mjccd.scene import FrameCounters, Scene
+from mjccd.mujoco.chains import ChainLayout
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state
+from mjccd.mujoco.warnings import mujoco_warnings
+
+STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
+COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))  # the counters every check reports
+
+
+@dataclass(frozen=True, eq=False)
+class StepContact:
+    """First contact of one pair of bodies within one simulator step.
+
+    Attributes:
+        time: simulation time of the contact in seconds.
+        fraction: the same instant as a fraction in [0, 1] of the step.
+        bodies: the two body names (``#id`` for unnamed bodies).
+        body_ids: the two MuJoCo body ids.
+        ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`.
+        point: (3,) world contact point, None when the pair was not separate at the step start.
+        normal: (3,) unit world normal pointing out of ``bodies[0]``, None likewise.
+        status_at_start: "separate", "touching" or "overlapping" at the step start.
+        certainty: "certified", or "uncertain" when the exact solver hit one of its limits on
+            this pair: then the contact is only possible, somewhere in ``bracket``, and ``time``
+            and ``fraction`` are the start of that bracket (never read it as "no contact").
+        bracket: (lo, hi) simulation times in seconds holding every possible first contact
+            when uncertain (lo == hi when the first contact itself is known); None when certified.
+        pair: the index of the pair in the checker's pair list (``pairs[pair]`` is ``ellipsoids``).
+    """
+
+    time: float
+    fraction: float
+    bodies: tuple
+    body_ids: tuple
+    ellipsoids: tuple
+    point: object
+    normal: object
+    status_at_start: str
+    certainty: str = "certified"
+    bracket: tuple = None
+    pair: int = -1
+
+
+@dataclass(frozen=True, eq=False)
+class StepReport:
+    """Everything one check found: the first contact (or None), all colliding pairs when asked, counts.
+
+    ``pairs_uncertain`` counts the pairs on which the exact solver hit a limit (see
+    :attr:`StepContact.certainty`), including those whose bracket starts after the first contact.
+    ``unstable`` is True when MuJoCo met a bad position, velocity or acceleration within the step
+    (its ``mjWARN_BADQPOS``/``QVEL``/``QACC`` warnings, a state left NaN or infinite) and, unless
+    autoreset is disabled, reset the data: the jump back to the reset pose is no motion, so nothing
+    is checked across it (no contact, no pair counted), as :class:`~mjccd.mujoco.GuardReport` reports it.
+    ``counters`` (when the check gives them): the pair outcomes as :class:`mjccd.scene.FrameCounters`
+    field names to counts.
+    """
+
+    first: object
+    contacts: tuple
+    pairs_checked: int
+    pairs_solved: int
+    pairs_uncertain: int = 0
+    unstable: bool = False
+    counters: dict = None
+
+
+UNSTABLE_REPORT = StepReport(None, (), 0, 0, 0, True)  # what a step that met a bad state reports
+
+
+def load_model(source, *, field="model"):
+    """An ``MjModel`` from a model, an MJCF path or an MJCF string; errors name the file (or ``field``).
+
+    MuJoCo's compiler warnings go to stderr, each after the file's name.
+    """
+    if isinstance(source, mujoco.MjModel):
+        return source
+    if not isinstance(source, (str, pathlib.PurePath)):
+        raise InputTypeError(f"{field}: expected an MjModel, an MJCF path or an MJCF string, "
+                             f"got {type(source).__name__}")
+    text = str(source)
+    is_xml = isinstance(source, str) and text.lstrip().startswith("<")
+    name = "the MJCF string" if is_xml else text
+    if not is_xml:
+        path = pathlib.Path(text)
+        if path.is_dir():
+            raise InputError(f"{text}: is a folder, expected an MJCF model file")
+        if not path.is_file():
+            raise InputError(f"{text}: model file not found")
+    with mujoco_warnings() as warned:
+        try:
+            model = mujoco.MjModel.from_xml_string(text) if is_xml else mujoco.MjModel.from_xml_path(text)
+        except ValueError as exc:
+            message = " ".join(line.strip() for line in str(exc).splitlines() if line.strip()) or "cannot compile"
+            raise InputError(f"{name}: not a valid MJCF model: {message}") from None
+    for message in warned:
+        print(f"{name}: MuJoCo warning: {message}", file=sys.stderr)
+    return model
+
+
+def checked_pairs(pairs, n, field="pairs"):
+    """(P, 2) int64 ellipsoid index pairs, each two distinct indices in 0..n-1; errors name ``field``."""
+    arr = np.asarray(pairs)
+    if arr.size == 0:
+        return np.empty((0, 2), dtype=np.int64)
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.dtype.kind not in "iu":
+        raise InputError(f"{field}: expected P rows of 2 ellipsoid indices, got {arr.tolist()!r:.80}")
+    arr = arr.astype(np.int64)
+    if arr.min() < 0 or arr.max() >= n or np.any(arr[:, 0] == arr[:, 1]):
+        raise InputError(f"{field}: indices must be distinct and within 0..{n - 1}")
+    return np.ascontiguousarray(arr)
+
+
+def motions_between(model, ellipsoids, state0, state1, motion="rigid"):
+    """One mjccd motion per ellipsoid from state0 (t = 0) to state1 (t = 1).
+
+    Args:
+        model: ``mujoco.MjModel``.
+        ellipsoids: :class:`~mjccd.mujoco.EllipsoidSet`.
+        state0, state1: ``MjData``, :class:`State` or qpos vectors.
+        motion: "rigid" (per-ellipsoid pose lerp), "affine" (centre and shape
+            matrix lerp) or "chain" (joint-space interpolation down the tree, see
+            :mod:`mjccd.mujoco.chains`).
+    """
+    checker = ModelAdapter(model, ellipsoids, (), motion)
+    return checker.motions(as_state(model, state0, "state_t0"), as_state(model, state1, "state_t1"))
+
+
+class ModelAdapter:
+    """A model, its fitted ellipsoids and the pairs to check, bound to the CCD core for one motion model.
+
+    Args:
+        model: ``mujoco.MjModel``.
+        ellipsoids: :class:`EllipsoidSet` (its bodies are looked up in the model).
+        pairs: (P, 2) ellipsoid index pairs (:func:`mjccd.mujoco.pairs.select_pairs` makes them).
+        motion: "rigid", "affine" or "chain".
+        chain_filters: with the chain motion, decide pairs with the chain filters first (False:
+            every pair goes to the exact solver; the filters never change an answer).
+    """
+
+    def __init__(self, model, ellipsoids, pairs, motion="rigid", *, chain_filters=True):
+        if not isinstance(ellipsoids, EllipsoidSet):
+            raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
+        if not isinstance(motion, str) or motion not in MOTIONS:
+            raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+        self.model, self.ellipsoids, self.motion = model, ellipsoids, motion
+        self.body_ids = ellipsoids.body_ids(model)
+        self.pairs = checked_pairs(pairs, len(ellipsoids))
+        self.labels = [body_label(model, b) for b in range(model.nbody)]
+        self.kinematics = Kinematics(model)
+        self.radii = ellipsoids.radii
+        self.scene = Scene(self.radii, pairs=self.pairs, motion=motion) \
+            if motion != "chain" and len(self.pairs) else None
+        self.chain_filter = cb.ChainFilter(self.chains.program, self.radii, self.pairs) \
+            if motion == "chain" and chain_filters and len(self.pairs) else None
+        self._cached = None  # (state, poses) of the last end state
+
+    @cached_property
+    def chains(self):
+        """The :class:`~mjccd.mujoco.chains.ChainLayout` of the ellipsoids (built on first use)."""
+        e = self.ellipsoids
+        return ChainLayout(self.model, self.body_ids, e.positions, e.quaternions)
+
+    @cached_property
+    def _shapes(self):
+        return [Ellipsoid(r) for r in self.radii]
+
+    def motions(self, s0, s1):
+        """One exact motion per ellipsoid from :class:`State` s0 (t = 0) to s1 (t = 1), of the adapter's model."""
+        if self.motion == "chain":
+            return self.chain_motions(s0, s1)
+        e0, e1 = self.poses(s0), self.poses(s1)
+        cls = Rigid if self.motion == "rigid" else Affine
+        return [cls(a[:3], a[3:], b[:3], b[3:]) for a, b in zip(e0, e1)]
+
+    def chain_motions(self, s0, s1):
+        """The exact chain motion (:class:`mjccd.Chain`) of every ellipsoid from :class:`State` s0 to s1."""
+        chains = self.chains
+        v0, v1 = chains.values(s0), chains.values(s1)
+        chains.check_turns(v0, v1)
+        return [chains.motion(e, v0, v1) for e in range(len(self.body_ids))]
+
+    # ------------------------------------------------------------ poses
+
+    def poses(self, state):
+        """(N, 7) world poses [x, y, z, qw, qx, qy, qz] of the ellipsoids in ``state`` (a :class:`State`)."""
+        c = self._cached
+        if c is not None and c[0].time == state.time and np.array_equal(c[0].qpos, state.qpos) \
+                and np.array_equal(c[0].mocap_pos, state.mocap_pos) \
+                and np.array_equal(c[0].mocap_quat, state.mocap_quat):
+            return c[1]
+        return self.kinematics.ellipsoid_poses(state, self.body_ids, self.ellipsoids.positions,
+                                               self.ellipsoids.quaternions)
+
+    def qpos_poses(self, qpos):
+        """(F, N, 7) ellipsoid poses of qpos rows (F, nq), mocap bodies at the model's own poses."""
+        mocap = self.model.body_mocapid >= 0
+        mpos, mquat = self.model.body_pos[mocap], self.model.body_quat[mocap]
+        return np.stack([self.kinematics.ellipsoid_poses(State(q, mpos, mquat), self.body_ids,
+                                                         self.ellipsoids.positions, self.ellipsoids.quaternions)
+                         for q in qpos]) if len(qpos) else np.empty((0, len(self.body_ids), 7))
+
+    def forget(self):
+        """Drop the remembered end state (after a jump: MuJoCo's reset of a bad state)."""
+        self._cached = None
+
+    # ------------------------------------------------------------ checks
+
+    def check(self, s0, s1, *, poses=None, all_pairs=False, new_only=False, names=("state_t0", "state_t1")):
+        """The :class:`StepReport` of the motion from :class:`State` s0 (t = 0) to s1 (t = 1).
+
+        ``poses``: the ellipsoid poses (N, 7) of both states when the caller has them (:meth:`qpos_poses`);
+        ``all_pairs``: every colliding pair in ``contacts`` (else only the first contact);
+        ``new_only``: pairs touching or overlapping at the start are left out; ``names``: the two
+        states as the caller knows them, for errors.
+        """
+        if len(self.pairs) == 0:
+            return StepReport(None, (), 0, 0, 0, False, dict.fromkeys(COUNTER_NAMES, 0))
+        if poses is None:
+            poses = (self.poses(s0), self.kinematics.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions,
+                                                                     self.ellipsoids.quaternions))
+        check = self._check_scene if self.scene is not None else self._check_chain
+        report = check(s0, s1, poses, names, all_pairs, new_only)
+        self._cached = (s1, poses[1])
+        return report
+
+    def contact(self, t0, t1, k, fraction, point, normal, poses0, bracket=None, status=None):
+        """The :class:`StepContact` of pair ``k`` at ``fraction`` of a step from time ``t0`` to ``t1``.
+
+        ``poses0``: the ellipsoid poses at the step start.  ``bracket``: (lo, hi) step fractions of an
+        uncertain answer (None: certified).  ``status``: the status at the step start when the caller
+        knows it; else separate when there is a point or an uncertain contact after the start, and the
+        static status of the start poses otherwise.
+        """
+        i, j = int(self.pairs[k, 0]), int(self.pairs[k, 1])
+        if status is None:
+            if point is None and (bracket is None or bracket[1] == 0.0):
+                r = self.radii
+                status = STATUS[static_status_code(r[i], poses0[i, :3], poses0[i, 3:],
+                                                   r[j], poses0[j, :3], poses0[j, 3:])]
+                status = "touching" if status == "separate" else status
+            else:
+                status = "separate"
+        a, b = int(self.body_ids[i]), int(self.body_ids[j])
+        seconds = None if bracket is None else (float(self._seconds(t0, t1, bracket[0])),
+                                                float(self._seconds(t0, t1, bracket[1])))
+        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
+                           (self.labels[a], self.labels[b]), (a, b), (i, j),
+                           None if point is None else np.array(point, float),
+                           None if normal is None else np.array(normal, float), status,
+                           "certified" if bracket is None else "uncertain", seconds, int(k))
+
+    def _seconds(self, t0, t1, fraction):
+        """Simulation time at ``fraction`` of a step from ``t0`` to ``t1`` (either None: unknown)."""
+        if t0 is not None and t1 is not None and t1 > t0:
+            return t0 + fraction * (t1 - t0)
+        return (t0 if t0 is not None else 0.0) + fraction * self.model.opt.timestep
+
+    def _pose_error(self, state, poses, name):
+        """The :class:`~mjccd.errors.InputError` for ellipsoid poses that are not all finite, in the user's terms.
+
+        ``name`` is the state as the caller knows it ("state_t1", "data after step 2 of 5").  MuJoCo
+        checks neither mocap poses nor, without contacts, what they do, so a NaN there reaches the check.
+        """
+        for field in ("qpos", "mocap_pos", "mocap_quat"):
+            values = np.ravel(getattr(state, field))
+            bad = np.flatnonzero(~np.isfinite(values))
+            if len(bad):
+                return InputError(f"{name}: {field}[{bad[0]}] is NaN or infinite")
+        k = int(np.flatnonzero(~np.isfinite(poses).all(axis=1))[0])
+        return InputError(f"{name}: the pose of ellipsoid {k} (body {self.labels[self.body_ids[k]]!r}) is not "
+                          f"finite (largest |qpos| {np.abs(state.qpos).max():.3g})")
+
+    def _finite(self, states, poses, names):
+        for state, p, name in zip(states, poses, names):
+            if not np.isfinite(p).all():
+                raise self._pose_error(state, p, name) from None
+
+    def _check_scene(self, s0, s1, poses, names, all_pairs, new_only):
+        """Rigid and affine motions: the batched :class:`mjccd.scene.Scene` pipeline."""
+        p0, p1 = poses
+        try:
+            frame = self.scene.step(p0, p1, all_pairs=all_pairs, new_contacts_only=new_only)
+        except InputError:  # the scene names its own arguments: name the state instead
+            self._finite((s0, s1), (p0, p1), names)
+            raise
+
+        def convert(pc):
+            return self.contact(s0.time, s1.time, pc.pair, pc.time, pc.point, pc.normal, p0, pc.bracket)
+
+        first = None if frame.first is None else convert(frame.first)
+        contacts = tuple(sorted((convert(c) for c in frame.contacts), key=lambda c: c.fraction))
+        c = frame.counters
+        return StepReport(first, contacts, c.pairs, c.solved_exactly, c.uncertain, False, vars(c))
+
+    def _check_chain(self, s0, s1, poses, names, all_pairs, new_only):
+        """Chain motions: the chain filters, then the exact solver pair by pair."""
+        p0 = poses[0]
+        self._finite((s0, s1), poses, names)
+        chains = self.chains
+        v0, v1 = chains.values(s0), chains.values(s1)
+        chains.check_turns(v0, v1)
+        counters = dict.fromkeys(COUNTER_NAMES, 0)
+        counters["pairs"] = len(self.pairs)
+        contacts = []
+        if self.chain_filter is None:
+            todo = range(len(self.pairs))
+        else:
+            outcome = self.chain_filter.step(v0, v1)
+            counts = self.chain_filter.counters
+            for name, code in (("sphere_culled", cb.SPHERE), ("cached_plane", cb.CACHED_PLANE),
+                               ("new_plane", cb.NEW_PLANE)):
+                counters[name] = int(counts[code])
+            overlap = np.flatnonzero(outcome == cb.OVERLAP_T0)
+            counters["overlapping_t0"] = counters["colliding"] = len(overlap)
+            if not new_only:  # as the scene: overlapping at t = 0, no solve
+                contacts += [self.contact(s0.time, s1.time, k, 0.0, None, None, p0, status="overlapping")
+                             for k in overlap.tolist()]
+            todo = np.flatnonzero(outcome == cb.EXACT).tolist()
+        t_max = 0.0 if contacts and not all_pairs else 1.0
+        motions = {}  # built only for the ellipsoids of pairs left to the exact solver
+        for k in todo:
+            if t_max == 0.0:
+                counters["pruned"] += 1
+                continue
+            i, j = (int(x) for x in self.pairs[k])
+            for e in (i, j):
+                if e not in motions:
+                    motions[e] = chains.motion(e, v0, v1)
+            counters["solved_exactly"] += 1
+            hit = first_contact(self._shapes[i], motions[i], self._shapes[j], motions[j],
+                                t_max=1.0 if all_pairs else t_max)
+            if hit is None:
+                continue
+            certain = hit.certainty == "certified"
+            counters["uncertain"] += not certain
+            if hit.status_at_start != "separate":
+                counters["overlapping_t0"] += 1
+                counters["colliding"] += 1
+                if new_only:
+                    continue
+            elif hit.point is not None or certain:
+                counters["colliding"] += 1
+            bracket = None if certain else hit.bracket
+            # an uncertain answer keeps the solver's status (the start poses alone may not settle it)
+            c = self.contact(s0.time, s1.time, k, hit.time, hit.point, hit.normal, p0, bracket,
+                             None if certain else hit.status_at_start)
+            contacts.append(c)
+            if not all_pairs:
+                t_max = min(t_max, c.fraction)
+        contacts.sort(key=lambda c: c.fraction)
+        first = contacts[0] if contacts else None
+        return StepReport(first, tuple(contacts) if all_pairs else (), len(self.pairs),
+                          counters["solved_exactly"], counters["uncertain"], False, counters)

@@ -1,0 +1,172 @@
+"""The one MuJoCo adapter: chain motions that follow MuJoCo's kinematics with joint references, and the same
+contacts from the monitor, the guard's step check, replay and mjccd.testing on the same states."""
+import mujoco
+import numpy as np
+import pytest
+
+from mjccd import replay
+from mjccd.mujoco import CCDMonitor, ModelAdapter, State, geom_ellipsoids
+from mjccd.mujoco.monitor import StepCheck
+from mjccd.testing import trajectory_contacts
+
+# two characters: an arm on the world whose hinges and slide have non-zero references (one hinge is driven past
+# pi from its reference), and a free body with a ball-jointed head flying into it
+MODEL = """
+<mujoco>
+ <option timestep="0.01"/>
+ <worldbody>
+  <body name="a_arm" pos="0 0 0.5" euler="0 0 10">
+   <joint name="a_shoulder" type="hinge" axis="0 1 0" pos="0 0 -0.05" ref="0.7"/>
+   <geom name="a_arm_bound" type="ellipsoid" size="0.25 0.06 0.06" pos="0.2 0 0" group="5"/>
+   <body name="a_fore" pos="0.4 0 0" quat="0.98 0 0.2 0">
+    <joint name="a_reach" type="slide" axis="1 0 0.2" ref="0.1"/>
+    <joint name="a_elbow" type="hinge" axis="0 0 1" pos="0.02 0 0" ref="-0.5"/>
+    <geom name="a_fore_bound" type="ellipsoid" size="0.2 0.05 0.05" pos="0.15 0 0" group="5"/>
+   </body>
+  </body>
+  <body name="b_torso" pos="1.2 0 0.5">
+   <freejoint/>
+   <geom name="b_torso_bound" type="ellipsoid" size="0.15 0.1 0.2" group="5"/>
+   <body name="b_head" pos="0 0 0.3">
+    <joint name="b_neck" type="ball" pos="0 0 -0.05"/>
+    <geom name="b_head_bound" type="ellipsoid" size="0.08 0.08 0.1" pos="0 0.02 0" group="5"/>
+   </body>
+  </body>
+ </worldbody>
+</mujoco>
+"""
+FRAMES = 40
+
+
+def _trajectory(model):
+    """(T, nq) qpos: the arm swings (its elbow from 2.9 to 3.6 rad past its reference), the free body flies in."""
+    s = np.linspace(0.0, 1.0, FRAMES)
+    qpos = np.tile(model.qpos0, (FRAMES, 1))
+    qpos[:, 0] = 0.7 + 0.4 * s              # a_shoulder: 0 .. 0.4 from its reference
+    qpos[:, 1] = 0.1 + 0.15 * np.sin(3 * s)  # a_reach
+    qpos[:, 2] = -0.5 + 2.9 + 0.7 * s        # a_elbow: 2.9 .. 3.6 rad from its reference (beyond pi)
+    qpos[:, 3] = 1.2 - 0.9 * s               # b_torso flies in along -x, turning
+    qpos[:, 5] = 0.5 - 0.1 * s
+    angle = 1.5 * s
+    qpos[:, 6:10] = np.stack([np.cos(angle / 2), 0 * s, np.sin(angle / 2) * 0.6, np.sin(angle / 2) * 0.8], axis=1)
+    tilt = 0.8 * s
+    qpos[:, 10:14] = np.stack([np.cos(tilt / 2), np.sin(tilt / 2), 0 * s, 0 * s], axis=1)
+    return qpos
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("adapter")
+    model_file = folder / "model.xml"
+    model_file.write_text(MODEL)
+    model = mujoco.MjModel.from_xml_path(str(model_file))
+    qpos = _trajectory(model)
+    times = np.arange(FRAMES) * model.opt.timestep
+    traj = folder / "traj.npz"
+    np.savez(traj, qpos=qpos, time=times)
+    none = (np.zeros((0, 3)), np.zeros((0, 4)))
+    states = [State(q, *none, float(t)) for q, t in zip(qpos, times)]
+    return model, model_file, traj, qpos, times, states
+
+
+def _geom_frames(model, qpos, geoms):
+    """MuJoCo's own world frames [R | p] (3 x 4) of the named geoms at ``qpos``."""
+    d = mujoco.MjData(model)
+    d.qpos[:] = qpos
+    mujoco.mj_kinematics(model, d)
+    return [np.hstack([d.geom_xmat[g].reshape(3, 3), d.geom_xpos[g][:, None]])
+            for g in (model.geom(name).id for name in geoms)]
+
+
+def _key(c):
+    """What a contact is, for comparing paths: the pair of bodies, the step fraction, the point."""
+    return c.bodies, c.fraction, None if c.point is None else tuple(c.point)
+
+
+def test_chain_motion_follows_mujoco_with_joint_references(scene):
+    """At every frame both ends of the chain motion, and the chain filters' poses, are MuJoCo's kinematics."""
+    model, _, _, qpos, _, states = scene
+    assert np.count_nonzero(model.qpos0[:3]) == 3  # the hinges and the slide have references
+    ellipsoids, pairs = replay.replay_ellipsoids(model)
+    checker = ModelAdapter(model, ellipsoids, pairs, "chain")
+    layout = checker.chains
+    worst = 0.0
+    for k in range(FRAMES - 1):
+        motions = checker.chain_motions(states[k], states[k + 1])
+        v0, v1 = layout.values(states[k]), layout.values(states[k + 1])
+        for t, q in ((0.0, qpos[k]), (1.0, qpos[k + 1])):
+            want = _geom_frames(model, q, ellipsoids.geoms)
+            centres, quats = checker.chain_filter.poses(v0, v1, t)
+            for e, (motion, frame) in enumerate(zip(motions, want)):
+                worst = max(worst, np.abs(motion.transform(t) - frame).max())
+                np.testing.assert_allclose(centres[e], frame[:, 3], atol=1e-12)
+                R = np.empty(9)
+                mujoco.mju_quat2Mat(R, quats[e])
+                np.testing.assert_allclose(R.reshape(3, 3), frame[:, :3], atol=1e-12)
+    assert worst < 1e-12, worst
+
+
+def test_chain_replay_equals_the_monitor_with_joint_references(scene):
+    """replay --motion chain on the reference-joint model: every first contact equals the monitor's on the same
+    states (all pairs reported, new contacts only)."""
+    model, model_file, traj, _, times, states = scene
+    result = replay.replay(model_file, traj, "chain", None, progress=False)
+    assert len(result.contacts) >= 2
+    monitor = CCDMonitor(model, mujoco.MjData(model), geom_ellipsoids(model), pairs="characters", motion="chain",
+                         all_pairs=True, report_overlapping=False)
+    expected = []
+    for k in range(FRAMES - 1):
+        monitor.check(states[k], states[k + 1])
+        expected += [(k, c.ellipsoids, c.fraction, tuple(c.point) if c.point is not None else (0.0, 0.0, 0.0))
+                     for c in sorted(monitor.last_report.contacts, key=lambda c: c.pair)]
+    names = list(result.ellipsoids.geoms)
+    got = [(c["frame"], tuple(names.index(n) for n in c["ellipsoids"]), c["toi"], tuple(c["point"]))
+           for c in result.contacts]
+    assert got == expected
+
+
+def test_monitor_guard_replay_and_testing_give_the_same_contacts(scene):
+    """One model, one trajectory, rigid motion: the four MuJoCo-facing paths find the same contacts."""
+    model, model_file, traj, qpos, times, states = scene
+    ellipsoids = geom_ellipsoids(model)
+    new_only = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters", all_pairs=True,
+                          report_overlapping=False)
+    every = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters")
+    per_frame_new, per_frame_first, firsts = [], [], []
+    for k in range(FRAMES - 1):
+        new_only.check(states[k], states[k + 1])
+        per_frame_new.append(sorted((_key(c) for c in new_only.last_report.contacts), key=str))
+        per_frame_first.append(new_only.last_report.first)
+        firsts.append(every.check(states[k], states[k + 1]))
+    assert sum(map(len, per_frame_new)) >= 2 and any(c is not None and c.status_at_start != "separate"
+                                                      for c in firsts)
+
+    # replay: every new contact of every frame
+    result = replay.replay(model_file, traj, "rigid", None, progress=False)
+    by_frame = [[] for _ in range(FRAMES - 1)]
+    index = {name: e for e, name in enumerate(ellipsoids.geoms)}
+    for c in result.contacts:
+        i, j = (index[n] for n in c["ellipsoids"])
+        bodies = (ellipsoids.bodies[i], ellipsoids.bodies[j])
+        by_frame[c["frame"]].append((bodies, c["toi"], tuple(c["point"])))
+    assert [sorted(f, key=str) for f in by_frame] == per_frame_new
+
+    # the guard's step check: the earliest new contact of each step
+    check = StepCheck(CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters",
+                                 report_overlapping=False))
+    data = mujoco.MjData(model)
+    for k in range(FRAMES - 1):
+        data.qpos[:] = qpos[k]
+        check.begin(data)
+        data.qpos[:] = qpos[k + 1]
+        may = check.end_may_touch(data)
+        lean = check.first((times[k], times[k + 1]))
+        want = per_frame_first[k]
+        assert (lean is None) == (want is None), k
+        if want is not None:
+            assert may and _key(lean) == _key(want) and lean.time == want.time
+
+    # mjccd.testing: the first contact of each step, contacts at the step start included
+    found = trajectory_contacts(model, qpos, pairs="characters", ellipsoids=ellipsoids, times=times)
+    assert [(_key(c), c.time, c.status_at_start) for c in found] == \
+        [(_key(c), c.time, c.status_at_start) for c in firsts if c is not None]

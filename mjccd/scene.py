@@ -40,6 +40,7 @@ from mjccd import filters as fl
 from mjccd.ccd import exact_pair, same_orientation
 from mjccd.errors import InputError
 from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
+from mjccd.sorting import sort_by_key
 
 _jit = numba.njit(cache=True, nogil=True)
 _inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
@@ -384,19 +385,6 @@ def _split_poses(poses, p, q):
     return abs(total - poses.shape[0]) < 0.5
 
 
-@_jit
-def _sort_by_entry(cand, m, entry):
-    """Stable insertion sort of cand[:m] by sphere-entry time (m is small)."""
-    for a in range(1, m):
-        k = cand[a]
-        e = entry[k]
-        b = a - 1
-        while b >= 0 and entry[cand[b]] > e:
-            cand[b + 1] = cand[b]
-            b -= 1
-        cand[b + 1] = k
-
-
 @_inline
 def _too_slow(p0, q0, p1, q1, rmax, min_motion, i, j, k):
     """Policy: the ellipsoids of pair k = (i, j) move by less than ``min_motion[k]`` relative to each other.
@@ -510,7 +498,7 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
             ticks[k] = _ticks() - t_start
     niv = 0
     if ncand > 1:
-        _sort_by_entry(cand, ncand, entry)
+        sort_by_key(cand, ncand, entry)  # by sphere-entry time
     for idx in range(ncand):
         k = cand[idx]
         if timing:

@@ -13,7 +13,7 @@ from mjccd.fitting import Shape, ball_max_bound, containment_factor, fit_atoms, 
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
 
 PACKAGE = pathlib.Path(mjccd.__file__).resolve().parent
-CORE = ("bernstein", "quadric", "motion", "ccd", "filters", "scene", "fitting")
+CORE = ("bernstein", "quadric", "motion", "ccd", "filters", "scene", "sorting", "fitting")
 CLIPS = PACKAGE.parent / "data" / "mocap"
 
 # ---------------------------------------------------------------- layering

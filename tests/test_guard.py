@@ -585,3 +585,200 @@ def test_step_check_follow_reuses_the_end_poses():
     followed = [p.copy() for p in check.poses]
     check.begin(data)  # what a fresh begin of the same state would record
     assert np.array_equal(check.poses[0], followed[1])
+
+
+# ------------------------------------------------------------ energy after a clamp
+
+# A two-link arm: the upper link turns freely on a ball joint, the forearm hangs on a heavily damped ball
+# joint, as the boxing benchmark's elbow and wrist, and its end swings into a thin stop.  With the implicit
+# integrator, a contact force that a short step builds up against the damped joint carries into the next step;
+# the guard used to follow its short contact step with one long one and so spun the arm up (4 to 170 times
+# its energy); plain MuJoCo at dt and dt/10 never gains energy here.
+PENDULUM = """
+<mujoco>
+  <option timestep="{dt!r}" integrator="implicit"/>
+  <default><geom type="ellipsoid" solref="0.001 1"/></default>
+  <worldbody>
+    <body name="upper">
+      <joint name="shoulder" type="ball"/>
+      <geom size="0.2 0.03 0.03" pos="0.2 0 0" mass="1" contype="0" conaffinity="0"/>
+      <body name="fore" pos="0.4 0 0">
+        <joint name="elbow" type="ball" damping="1e4"/>
+        <geom name="fore" size="0.15 0.03 0.03" pos="0.15 0 0" mass="0.5"/>
+      </body>
+    </body>
+    <body name="stop" pos="0 0.55 0"><geom name="stop" size="0.1 0.01 0.1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def mechanical_energy(model, data):
+    """Kinetic plus potential energy of ``data`` (computed on a copy)."""
+    probe = mujoco.MjData(model)
+    probe.qpos[:], probe.qvel[:] = data.qpos, data.qvel
+    mujoco.mj_forward(model, probe)
+    mujoco.mj_energyPos(model, probe)
+    mujoco.mj_energyVel(model, probe)
+    return float(probe.energy.sum()), float(probe.energy[1])
+
+
+def strike(spin, mode, steps=30, dt=1 / 120):
+    """Swing the pendulum about z at ``spin`` rad/s (tilted about x by 3 rad/s) into the stop; (peak
+    energy over the start's, the reports) under ``mode``: "plain", "dt/10" or "guarded"."""
+    k = 10 if mode == "dt/10" else 1
+    model = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=dt / k))
+    data = mujoco.MjData(model)
+    data.qvel[:3] = [3.0, 0.0, spin]
+    mujoco.mj_forward(model, data)
+    guard = GuardedStepper(model, data, fit_model(model), pairs=[("fore", "stop")]) if mode == "guarded" else None
+    start, _ = mechanical_energy(model, data)
+    peak, reports = start, []
+    for _ in range(steps * k):
+        if guard is None:
+            mujoco.mj_step(model, data)
+        else:
+            reports.append(guard.step())
+        peak = max(peak, mechanical_energy(model, data)[0])
+    return peak / start, reports
+
+
+@pytest.mark.parametrize("spin", [40.0, 80.0])
+def test_a_pendulum_striking_a_stop_gains_no_energy_under_the_guard(spin):
+    guarded, reports = strike(spin, "guarded")
+    fine, _ = strike(spin, "dt/10")
+    assert sum(len(r.clamps) for r in reports) >= 1
+    assert fine <= 1.0 + 1e-9
+    assert guarded <= fine * 1.05
+    split = [r for r in reports if len(r.substeps) > 1]
+    assert split and not any(r.energy_gain for r in reports)
+    for r in split:  # the clamped step removes most of the swing's energy, and no step adds energy
+        assert r.energy_added <= 1e-9 * r.kinetic_energy[0]
+    assert split[0].kinetic_energy[1] < 0.5 * split[0].kinetic_energy[0]
+    plain = [r for r in reports if len(r.substeps) == 1]
+    assert all(r.kinetic_energy is None and r.energy_added is None and not r.energy_gain for r in plain)
+
+
+def test_a_step_that_adds_energy_is_flagged(monkeypatch):
+    """Without the ramp of growing pieces (one short contact step, then the rest of the step at once, as
+    the guard used to step) the pendulum's clamped step spins the arm up: the report says so."""
+    import mjccd.mujoco.guard as guard_module
+
+    monkeypatch.setattr(guard_module, "RAMP_GROWTH", float("inf"))
+    model = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=1 / 120))
+    data = mujoco.MjData(model)
+    data.qvel[:3] = [3.0, 0.0, 80.0]
+    mujoco.mj_forward(model, data)
+    guard = GuardedStepper(model, data, fit_model(model), pairs=[("fore", "stop")], contact_step=0.05)
+    guard._contact_half = 0.0  # the first piece in contact: contact_step, as before
+    reports = [guard.step() for _ in range(4)]
+    flagged = [r for r in reports if r.energy_gain]
+    assert flagged and flagged[0].clamps
+    before, after = flagged[0].kinetic_energy
+    assert after > 2.0 * before and flagged[0].energy_added > 0.5 * after
+
+
+def test_a_free_ball_bouncing_on_a_wall_gains_no_energy():
+    """No damped joint carries a contact force from one step into the next: after the clamp the rest of
+    the step is one piece, and the mechanical energy (kinetic plus gravity) only falls."""
+    for dt, speed in ((0.002, 200.0), (0.01, 50.0)):
+        model = wall_model(dt)
+        data = thrown(model, speed)
+        guard = GuardedStepper(model, data, fit_model(model))
+        start, _ = mechanical_energy(model, data)
+        for _ in range(int(round(0.1 / dt))):
+            report = guard.step()
+            assert mechanical_energy(model, data)[0] <= start * (1.0 + 1e-9)
+            assert not report.energy_gain
+            if report.clamps:
+                assert len(report.substeps) == 3  # the clamp, a piece in contact, the rest
+                assert report.kinetic_energy[1] < report.kinetic_energy[0]
+        assert guard.clamps_total >= 1 and data.qvel[0] <= 0.0
+
+
+def test_the_pieces_grow_into_the_next_step_while_in_contact():
+    """A clamp late in a step on the damped pendulum: the pieces in contact at most double, and the next
+    step goes on with them (no trial, no clamp) until they are back to the timestep; a plain run that
+    takes the same lengths reaches the same states bit for bit."""
+    from mjccd.mujoco.guard import RAMP_GROWTH
+
+    dt = 1 / 120
+    model = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=dt))
+    data, replay = mujoco.MjData(model), mujoco.MjData(model)
+    for d in (data, replay):
+        d.qvel[:3] = [0.0, 0.0, 15.0]  # the clamp comes at 0.81 of a step
+        mujoco.mj_forward(model, d)
+    guard = GuardedStepper(model, data, fit_model(model), pairs=[("fore", "stop")])
+    carried = 0
+    half = 0.5 * 0.001  # half the contacts' time constant
+    for _ in range(30):
+        report = guard.step()
+        for h in report.substeps:
+            model.opt.timestep = h
+            mujoco.mj_step(model, replay)
+        model.opt.timestep = dt
+        assert np.array_equal(full_state(model, data), full_state(model, replay))
+        assert np.isclose(sum(report.substeps), dt, rtol=0, atol=1e-15)
+        if len(report.substeps) > 1 and not report.clamps:
+            carried += 1
+            assert report.rollbacks == 0 and report.kinetic_energy is not None
+        pieces = report.substeps[1:] if report.clamps else report.substeps
+        for a, b in zip(pieces, pieces[1:]):
+            assert b <= RAMP_GROWTH * max(a, half) * (1 + 1e-12) or b == pieces[-1]
+    assert guard.clamps_total >= 1 and carried >= 1
+
+
+def test_a_reset_ends_the_ramp_and_runs_repeat_exactly():
+    """The same start gives the same guarded trajectory twice, on one guard (reset in between, as an
+    episode) and on a fresh one."""
+    dt = 1 / 120
+    model = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=dt))
+
+    def trajectory(guard, data):
+        """Up to the first clamped step, which leaves pieces to grow in the next."""
+        mujoco.mj_resetData(model, data)
+        data.qvel[:3] = [0.0, 0.0, 15.0]
+        mujoco.mj_forward(model, data)
+        out = []
+        for _ in range(30):
+            report = guard.step()
+            out.append((report.substeps, data.qpos.tobytes(), data.qvel.tobytes()))
+            if report.clamps:
+                break
+        return out, guard._ramp
+
+    data = mujoco.MjData(model)
+    guard = GuardedStepper(model, data, fit_model(model), pairs=[("fore", "stop")])
+    first, ramp = trajectory(guard, data)
+    assert ramp is not None  # the run ends with pieces still growing: the reset must drop them
+    again, _ = trajectory(guard, data)
+    data2 = mujoco.MjData(model)
+    fresh, _ = trajectory(GuardedStepper(model, data2, fit_model(model), pairs=[("fore", "stop")]), data2)
+    assert first == again == fresh
+    assert any(len(s) > 1 for s, _, _ in first)
+
+
+def test_contact_time_and_carrying():
+    from mjccd.mujoco.guard import carries_contact_force, shortest_contact_time
+
+    pendulum = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=0.01))
+    assert shortest_contact_time(pendulum) == 0.001 and carries_contact_force(pendulum)
+    ball = wall_model(0.01)
+    assert shortest_contact_time(ball) == 0.001
+    undamped = PENDULUM.format(dt=0.01).replace(' damping="1e4"', "")
+    assert not carries_contact_force(mujoco.MjModel.from_xml_string(undamped))
+    ball.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_OVERRIDE
+    ball.opt.o_solref[0] = 0.0005
+    assert shortest_contact_time(ball) == 0.0005
+    damped_euler = mujoco.MjModel.from_xml_string(PENDULUM.format(dt=0.01).replace(' integrator="implicit"', ""))
+    assert carries_contact_force(damped_euler)
+    damped_euler.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    assert not carries_contact_force(damped_euler)
+    damped_euler.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    assert not carries_contact_force(damped_euler)
+
+
+def test_energy_tolerance_is_checked():
+    model = wall_model(0.002)
+    with pytest.raises(ValueError, match="energy_tolerance: expected a finite number >= 0, got -0.1"):
+        GuardedStepper(model, mujoco.MjData(model), fit_model(model), energy_tolerance=-0.1)

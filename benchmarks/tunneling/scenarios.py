@@ -6,6 +6,7 @@ speculative-contacts peer (speculative.py) runs them in an environment with anot
 import pathlib
 import time
 import xml.etree.ElementTree as ET
+from typing import NamedTuple, Optional
 
 import mujoco
 import numpy as np
@@ -23,6 +24,10 @@ STIFF = 'solref="0.001 1"'
 
 WALL_HALF = 0.01
 BALL_RADIUS = 0.02
+
+# A run of a closed scenario whose energy rose to this many times its start kinetic energy diverged (nothing
+# in it adds energy: any rise is the integration's)
+DIVERGED = 10.0
 
 
 def wall_xml(timestep, speed):
@@ -48,6 +53,9 @@ class Scenario:
 
     name = ""
     duration = 0.0
+    # closed: nothing does work on the bodies (no actuators, no applied forces, no prescribed motion), so the
+    # mechanical energy (kinetic plus potential) can only fall; Episodes measures its peak
+    closed = True
 
     def __init__(self, timestep, **params):
         self.timestep = timestep
@@ -113,6 +121,7 @@ class Kick(Wall):
 
     name = "kick"
     duration = 0.1
+    closed = False  # the kick does work
 
     def build(self):
         return mujoco.MjModel.from_xml_string(wall_xml(self.timestep, 0.0))
@@ -178,6 +187,7 @@ class Cup(Scenario):
 
     name = "cup"
     duration = 0.3
+    closed = False  # the cup's motion is prescribed
 
     def build(self):
         return mujoco.MjModel.from_xml_string(cup_xml(self.timestep))
@@ -331,6 +341,44 @@ def quick_cases():
     return [(c, dt, s[-1:]) for c, dt, s in CASES[::2]]
 
 
+class Energy:
+    """Mechanical energy (kinetic plus potential: gravity and springs) of a model's states, on a private
+    ``MjData`` so that the simulation's own data is not touched."""
+
+    def __init__(self, model):
+        self.model = model
+        self.data = mujoco.MjData(model)
+
+    def __call__(self, data):
+        """(kinetic, potential) energy of ``data``'s positions and velocities, in joules."""
+        m, e = self.model, self.data
+        e.qpos[:] = data.qpos
+        e.qvel[:] = data.qvel
+        e.mocap_pos[:] = data.mocap_pos
+        e.mocap_quat[:] = data.mocap_quat
+        mujoco.mj_kinematics(m, e)
+        mujoco.mj_comPos(m, e)
+        mujoco.mj_tendon(m, e)
+        mujoco.mj_makeM(m, e)
+        mujoco.mj_energyPos(m, e)
+        mujoco.mj_energyVel(m, e)
+        return float(e.energy[1]), float(e.energy[0])
+
+
+class Run(NamedTuple):
+    """One run of :meth:`Episodes.run`."""
+
+    tunneled: bool
+    cost: float  # CPU seconds per simulated second (the controller and the step)
+    unstable: bool  # MuJoCo met a bad state and reset the data
+    energy: Optional[float]  # closed scenarios: the peak of (kinetic + potential - start potential) / start kinetic
+
+    @property
+    def divergent(self):
+        """MuJoCo reset the run, or its energy rose to ``DIVERGED`` times the start kinetic energy."""
+        return self.unstable or (self.energy is not None and not self.energy < DIVERGED)
+
+
 class Episodes:
     """Repeated runs of one scenario on one simulation, built once as a user builds it.
 
@@ -346,19 +394,25 @@ class Episodes:
         self.scenario = scenario
         self.data = mujoco.MjData(scenario.model)
         self.step = None if make_step is None else make_step(scenario.model, self.data)
+        self.energy = Energy(scenario.model) if scenario.closed else None
 
     def run(self, seed):
-        """(tunneled, CPU seconds per simulated second, unstable) of one jittered run from the start state.
+        """The :class:`Run` of one jittered run from the start state.
 
-        The controller and the step are timed, the tunneling test is not.  ``unstable``: MuJoCo met a
-        bad state and reset the data (its bad-state warnings), so the rest of the run simulated the start
+        The controller and the step are timed; the tunneling test and, in closed scenarios, the energy
+        (after every step: each step of ``dt/k``, each whole guarded step) are not.  ``unstable``: MuJoCo met
+        a bad state and reset the data (its bad-state warnings), so the rest of the run simulated the start
         pose and "not tunneled" means nothing.
         """
-        sc, step = self.scenario, self.step
+        sc, step, energy = self.scenario, self.step, self.energy
         m, d = sc.model, self.data
         sc.reset(d, np.random.default_rng(seed))  # mj_resetData also clears the warning counts
         tunneled = False
         elapsed = 0.0
+        peak = None
+        if energy is not None:
+            kinetic0, potential0 = energy(d)
+            peak = 1.0
         for _ in range(int(round(sc.duration / m.opt.timestep))):
             t0 = time.perf_counter()
             sc.control(d)
@@ -368,5 +422,9 @@ class Episodes:
                 step()
             elapsed += time.perf_counter() - t0
             tunneled = tunneled or sc.tunneled(d)
+            if energy is not None:
+                kinetic, potential = energy(d)
+                rise = (kinetic + potential - potential0) / kinetic0
+                peak = max(peak, rise) if rise == rise else float("inf")  # NaN: diverged
         unstable = any(d.warning[int(w)].number > 0 for w in BAD_STATE_WARNINGS)
-        return tunneled, elapsed / sc.duration, unstable
+        return Run(tunneled, elapsed / sc.duration, unstable, peak)

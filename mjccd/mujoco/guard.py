@@ -16,6 +16,10 @@ from mjccd.mujoco.wrappers import DelegatingEnvironment, fitted_or_checked
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
+# After a clamp, each MuJoCo step taken in contact is at most this many times as long as the one before it
+# (or as half the shortest contact time constant, if that is longer), across the end of the guarded step if
+# need be, until the pieces are back to the timestep; see GuardedStepper and docs/guarded-stepping.md.
+RAMP_GROWTH = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +37,16 @@ class GuardReport:
             disabled, reset the data.  That MuJoCo step is kept as MuJoCo left it and not checked (a jump
             back to the reset pose is no motion), and the step ends there, so ``substeps`` may sum to
             less than the timestep.
+        kinetic_energy: (before, after) the step, in joules (``0.5 qvel' M qvel`` of the whole model), for a
+            step the guard split (clamped, or continuing the ramp of a clamp); None for a step that is one
+            plain ``mj_step`` (MuJoCo's own) and for an unstable one.
+        energy_added: for a split step, how much the mechanical energy (kinetic plus MuJoCo's potential:
+            gravity and springs) rose more than the work of actuators, applied forces, gravity compensation
+            and fluid forces explains, in joules, counted from the start of the clamped step (for a step
+            that goes on with its pieces, from the start of the step before); contacts and damping only
+            remove energy, so this is at most rounding in a sound step.  None otherwise.
+        energy_gain: True when ``energy_added`` exceeds ``energy_tolerance`` (see :class:`GuardedStepper`)
+            of the kinetic energy involved: the split step added energy, so its state is not to be trusted.
     """
 
     substeps: tuple
@@ -40,6 +54,9 @@ class GuardReport:
     rollbacks: int
     exhausted: bool
     unstable: bool = False
+    kinetic_energy: tuple = None
+    energy_added: float = None
+    energy_gain: bool = False
 
 
 def _positive(value, field, *, integer=False, allow_zero=False):
@@ -87,6 +104,45 @@ def pair_reach(tau, qvel0, qvel1, dofs):
     return reach_fraction(tau, dot / speed)
 
 
+def shortest_contact_time(model):
+    """The shortest contact time constant of ``model`` in seconds (``solref[0]`` > 0 of its colliding geoms,
+    its explicit pairs and, when enabled, the global override); 0 when it has none (``solref`` given as direct
+    stiffness and damping).
+
+    MuJoCo raises a contact's time constant to twice the running timestep, so in a step shorter than half of
+    this the contact is not stiffer: such a step's contact force is the one of a step of half this length.
+    """
+    colliding = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    times = [model.geom_solref[colliding, 0], model.pair_solref[:, 0]]
+    if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_OVERRIDE:
+        times.append(model.opt.o_solref[:1])
+    times = np.concatenate(times)
+    times = times[times > 0.0]
+    return float(times.min()) if len(times) else 0.0
+
+
+def carries_contact_force(model):
+    """True when a contact force can carry from one MuJoCo step into the next through damped velocities.
+
+    Where MuJoCo integrates velocity-dependent forces implicitly (joint damping under the Euler integrator,
+    and under the implicit ones also tendon damping, actuators and fluid forces), its constraint solver
+    still sees those forces explicitly: a dof that a step's contact pushed against its damping carries a
+    damping force as large as that push into the next step, which the contact there counters and the
+    integrator then mostly cancels, so the rest of the contact force drives the undamped dofs.  The push
+    scales with the contact force of the step before; a step much longer than that one applies it for
+    longer and adds energy (the guard's ramp of pieces, see :class:`GuardedStepper`).  Without such forces
+    (RK4, no damping) nothing carries over.
+    """
+    integrator = model.opt.integrator
+    if integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        return False
+    damped = bool(np.any(model.dof_damping > 0.0))
+    if integrator == mujoco.mjtIntegrator.mjINT_EULER:
+        return damped and not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP
+    fluid = model.opt.density > 0.0 or model.opt.viscosity > 0.0
+    return damped or bool(np.any(model.tendon_damping > 0.0)) or model.nu > 0 or fluid
+
+
 def _moving_dofs(model, body):
     """The dofs whose motion moves ``body``: those of its joints and of its ancestors' joints."""
     return np.flatnonzero(np.isin(model.dof_bodyid, body_path(model, body)))
@@ -106,13 +162,20 @@ class GuardedStepper:
     model takes over; the reduced timestep allows for the pair's speeding up
     or slowing down within the step, see :func:`reach_fraction`; a step
     lengthened that way is checked too), takes one short step in contact (``contact_step`` of
-    the timestep, where the contact removes most of the approach speed) and
-    then the rest of the step, every piece checked again.  At most
+    the timestep, or half the model's shortest contact time constant if that is
+    longer: the stiffest contact MuJoCo gives, which removes most of the approach
+    speed) and then the rest of the step, every piece checked again.  Where damped
+    joints carry a contact force from one MuJoCo step into the next
+    (:func:`carries_contact_force`), the pieces after it grow instead, each in
+    contact at most ``RAMP_GROWTH`` (2) times the one before, into the next
+    step if need be: a long step right after a short one in contact adds energy
+    (docs/guarded-stepping.md).  At most
     ``max_rechecks`` clamps per step; after that the remaining time is one
     unguarded MuJoCo step (reported as ``exhausted``).  A MuJoCo step in
     which MuJoCo meets a bad state (and resets the data) is kept as it is and
-    ends the guarded step (reported as ``unstable``).  Everything is
-    deterministic.
+    ends the guarded step (reported as ``unstable``).  A split step reports its
+    kinetic energy before and after and flags energy it added
+    (:class:`GuardReport`).  Everything is deterministic.
 
     Args:
         model, data: the simulation; ``data`` is advanced by :meth:`step`.
@@ -123,7 +186,8 @@ class GuardedStepper:
         max_rechecks: clamps allowed per step (>= 0; 0 only reports, never clamps).
         overshoot: how far past the contact instant a clamp goes, as a fraction of the timestep
             (4x further for each repeated clamp of the same pair within one step).
-        contact_step: length of the step taken right after a clamp, as a fraction of the timestep.
+        contact_step: length of the step taken right after a clamp, as a fraction of the timestep (at
+            least half the model's shortest contact time constant, :func:`shortest_contact_time`).
         max_penetration: how deep one step may carry a pair into each other before the guard steps in,
             as a fraction of the pair's thickness (the sum of the two smallest semi-axes).  A pair whose
             relative motion within a step (any point, centre travel plus rotation sweep) stays below
@@ -131,10 +195,13 @@ class GuardedStepper:
             bodies below its CCD motion threshold.  0 guards every new contact.  Rigid and affine
             motions only; a chain guard checks every pair.
         on_clamp: called with each :class:`~mjccd.mujoco.StepContact` that causes a clamp.
+        energy_tolerance: a split step whose mechanical energy rose by more than this fraction of the
+            kinetic energy involved, beyond the work of actuators and applied forces, is reported with
+            ``energy_gain`` (see :class:`GuardReport`).
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=32,
-                 overshoot=1e-3, contact_step=0.05, max_penetration=0.25, on_clamp=None):
+                 overshoot=1e-3, contact_step=0.05, max_penetration=0.25, on_clamp=None, energy_tolerance=0.05):
         self.monitor = CCDMonitor(model, data, ellipsoids, pairs=pairs, motion=motion,
                                   report_overlapping=False)
         self.max_rechecks = _positive(max_rechecks, "max_rechecks", integer=True, allow_zero=True)
@@ -150,6 +217,7 @@ class GuardedStepper:
                              f"got {max_penetration!r}")
         if on_clamp is not None and not callable(on_clamp):
             raise InputTypeError(f"on_clamp: expected a callable or None, got {type(on_clamp).__name__}")
+        self.energy_tolerance = _positive(energy_tolerance, "energy_tolerance", allow_zero=True)
         self.model, self.data, self.on_clamp = model, data, on_clamp
         self.ellipsoids, self.motion = ellipsoids, motion
         self._state0 = np.empty(mujoco.mj_stateSize(model, STATE_SPEC))
@@ -168,6 +236,15 @@ class GuardedStepper:
             self._fast.begin(data)
         self._plain_last = GuardReport((float(model.opt.timestep),), (), 0, False)  # an unclamped step's (shared)
         self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
+        # pieces in contact: none shorter, for their growth, than half the shortest contact time constant
+        self._contact_half = 0.5 * shortest_contact_time(model)
+        self._carries = carries_contact_force(model)  # pieces in contact grow only where this holds
+        # forces whose work a split step's energy report counts, other than applied ones (checked per piece)
+        self._forced = model.nu > 0 or model.ngravcomp > 0 or model.opt.density > 0.0 or model.opt.viscosity > 0.0
+        # the last piece of a split step that ended in contact with pieces still short of the timestep, and
+        # the time it ended at: the next step goes on growing them (see _clamped)
+        self._ramp, self._ramp_time = None, None
+        self._energy_data = None  # a private MjData for the energies of split steps (made at the first)
         self._warnings_of, self._bad_counts = None, None
         self.last_report = None
         self.clamps_total = 0
@@ -206,6 +283,10 @@ class GuardedStepper:
         ``full_step`` None is ``mujoco.mj_step(model, data)``.
         """
         m, d = self.model, self.data
+        if self._ramp is not None:  # the step before ended a clamp's pieces in contact: go on growing them
+            last, self._ramp = self._ramp, None
+            if d.time == self._ramp_time:  # (not after a reset or a jump in time)
+                return self._ramped(*last, finish)
         state0 = self._state0
         mujoco.mj_getState(m, d, state0, STATE_SPEC)
         counts = self._bad_counts if self._warnings_of is d else self._watch_warnings(d)
@@ -263,11 +344,19 @@ class GuardedStepper:
             report = self._plain_last = GuardReport((float(dt),), (), 0, False)
         return report
 
-    def _clamped(self, hit, bad, finish):
+    def _clamped(self, hit, bad, finish, first=None, since=None):
         """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece.
 
         ``bad``: MuJoCo's bad-state warning counts before the step (bytes); a piece that raises one ends
-        the step.
+        the step.  ``first``: a step that goes on with the pieces of the step before (no trial, ``hit``
+        None): the length of its first piece; ``since``: (mechanical energy, kinetic energy) at the start of
+        the step that was clamped and the work of external forces since then (see :meth:`_energy_report`).
+
+        After a clamp the step goes on in pieces that grow (:meth:`_grow`): the first one in contact is
+        ``contact_step`` of the timestep, or half the shortest contact time constant if that is longer (a
+        contact as stiff as MuJoCo allows it); each one after it in contact is at most ``RAMP_GROWTH``
+        times as long as the one before.  While the contact lasts, the pieces keep growing into the next
+        step until they are back to the timestep (``_ramp``).
         """
         m, d = self.model, self.data
         opt = self._opt
@@ -276,7 +365,22 @@ class GuardedStepper:
         substeps, clamps = [], []
         exhausted = unstable = False
         rollbacks = 0
+        if first is None:  # the step's start is the state saved for the trial
+            nq, nv = m.nq, m.nv
+            energy0 = self._energies(self._state0[1:1 + nq], self._state0[1 + nq:1 + nq + nv])
+        else:
+            energy0 = self._energies(d.qpos, d.qvel)
+        # the energy since the start of the clamped step, and the work of actuators, applied forces, gravity
+        # compensation and fluid forces in the pieces kept since
+        base, work = ((sum(energy0), energy0[1]), 0.0) if since is None else since
+        # controls and applied forces stay as they are through the step: without them (and without forces
+        # that do work of their own) no work is counted
+        forced = self._forced or d.xfrc_applied.any() or d.qfrc_applied.any()
+        moved = np.zeros(m.nv) if forced else None  # the pieces' generalized displacement (mean velocity)
         try:
+            if first is not None:
+                length = first
+                hit = self._piece(length, False)
             while True:
                 if hit is UNSTABLE:  # the piece just taken (``length`` long) met a bad state
                     substeps.append(length)
@@ -319,28 +423,118 @@ class GuardedStepper:
                         if self._went_bad(bad):
                             unstable = True
                             break
+                        self._displace(moved, h)
                         remaining -= h
-                        length = min(remaining, self.contact_step * dt)
+                        length = min(remaining, max(self.contact_step * dt, self._contact_half))
                         hit = self._piece(length, False)
                         continue
                 elif hit is not None:
                     exhausted = True
                 substeps.append(length)
+                self._displace(moved, length)
                 if length >= remaining:
                     break
                 remaining -= length
-                length = remaining
+                # in contact where damped velocities carry the contact force: grow the pieces (a long step
+                # right after short ones in contact adds energy); else the rest at once
+                length = self._grow(length, remaining) if d.ncon and self._carries else remaining
                 hit = self._piece(length, True)
         finally:
             opt.timestep = dt
-        if rollbacks and finish is not None:
+        last = substeps[-1]
+        if moved is not None:
+            work += self._work(moved)
+        if not unstable and d.ncon and self._carries and RAMP_GROWTH * max(last, self._contact_half) < dt:
+            self._ramp, self._ramp_time = (last, (base, work)), d.time
+        if (rollbacks or first is not None) and finish is not None:
             finish()
         self.clamps_total += len(clamps)
-        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted, unstable)
+        energy = {} if unstable else self._energy_report(energy0, base, work)
+        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted, unstable, **energy)
         if self.on_clamp is not None:
             for c in clamps:
                 self.on_clamp(c)
         return self.last_report
+
+    def _ramped(self, last, since, finish):
+        """A step that goes on growing the pieces of the step before, which ended in contact with a piece
+        ``last`` seconds long; ``since``: as in :meth:`_clamped`."""
+        d = self.data
+        counts = self._bad_counts if self._warnings_of is d else self._watch_warnings(d)
+        return self._clamped(None, counts.tobytes(), finish, first=self._grow(last, float(self._opt.timestep)),
+                             since=since)
+
+    def _grow(self, last, remaining):
+        """The length of the piece after one of ``last`` seconds in contact, ``remaining`` seconds before
+        the end of the step: ``RAMP_GROWTH`` times ``last`` (or half the shortest contact time constant, if
+        longer: a shorter step's contact is no stiffer), the rest of the step if that is no longer, and half
+        of it if the piece after would otherwise be the shorter (a short piece in contact stiffens it)."""
+        base = max(last, self._contact_half)
+        h = RAMP_GROWTH * base
+        if remaining <= h:
+            return remaining
+        if remaining < h + base:
+            return 0.5 * remaining
+        return h
+
+    # ------------------------------------------------------------ energy
+
+    def _energies(self, qpos, qvel):
+        """(potential, kinetic) energy in joules of the model at ``qpos``, ``qvel`` (mocap poses and the
+        rest from the data), computed on a private MjData."""
+        m, e = self.model, self._energy_data
+        if e is None:
+            e = self._energy_data = mujoco.MjData(m)
+        e.qpos[:] = qpos
+        e.qvel[:] = qvel
+        if m.nmocap:
+            e.mocap_pos[:] = self.data.mocap_pos
+            e.mocap_quat[:] = self.data.mocap_quat
+        mujoco.mj_kinematics(m, e)
+        mujoco.mj_comPos(m, e)
+        if m.ntendon:
+            mujoco.mj_tendon(m, e)
+        mujoco.mj_makeM(m, e)
+        mujoco.mj_energyPos(m, e)
+        mujoco.mj_energyVel(m, e)
+        return float(e.energy[0]), float(e.energy[1])
+
+    def _displace(self, moved, h):
+        """Add to ``moved`` (None: nothing to count) the generalized displacement of the MuJoCo step of ``h``
+        seconds just taken from the saved state: ``h`` times its mean velocity."""
+        if moved is not None:
+            moved += (0.5 * h) * (self._qvel0 + self.data.qvel)
+
+    def _work(self, moved):
+        """Work in joules of actuators, applied forces (``qfrc_applied``, ``xfrc_applied``), gravity
+        compensation and fluid forces over the generalized displacement ``moved``, at their values in the
+        last MuJoCo step taken (exact for constant forces under semi-implicit Euler at constant mass; an
+        estimate where they change within the step)."""
+        m, d = self.model, self.data
+        qfrc = d.qfrc_actuator + d.qfrc_applied + d.qfrc_fluid
+        if m.ngravcomp:
+            qfrc += d.qfrc_gravcomp * (m.jnt_actgravcomp[m.dof_jntid] == 0)  # else in qfrc_actuator
+        xfrc = d.xfrc_applied
+        for b in np.flatnonzero(xfrc.any(axis=1)):
+            mujoco.mj_applyFT(m, d, xfrc[b, :3], xfrc[b, 3:], d.xipos[b], int(b), qfrc)
+        return float(qfrc @ moved)
+
+    def _energy_report(self, energy0, base, work):
+        """The energy fields of the report of a split step that started with ``energy0`` (potential,
+        kinetic); the data holds its end.
+
+        ``base``: (mechanical, kinetic) energy at the start of the step that was clamped (this one, or the
+        one whose pieces this step goes on growing), ``work``: of external forces since then.  The energy
+        added is counted from there: a soft contact gives back, as it lets go, some of the energy its
+        penetration took, so a step of the ramp may end with more energy than it started with, never more
+        than the clamped step started with.
+        """
+        d = self.data
+        energy1 = self._energies(d.qpos, d.qvel)
+        added = sum(energy1) - base[0] - work
+        scale = max(base[1], energy1[1]) + abs(work)
+        return {"kinetic_energy": (energy0[1], energy1[1]), "energy_added": added,
+                "energy_gain": bool(added > self.energy_tolerance * scale and added > 0.0)}
 
     def _reach(self, hit):
         """:func:`reach_fraction` of ``hit`` in the piece just taken (from ``_state0`` to the data), from the

@@ -13,6 +13,8 @@ from collections import namedtuple
 import numpy as np
 import numba
 
+from mjccd.sorting import sort_by_key
+
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 # small helpers of hot loops; only ones on scalars or called once per node: array arguments of an
 # inlined helper cost reference counting in the loops that call it
@@ -40,14 +42,7 @@ def _sort_by_slope(a, n, order):
     """Insertion sort of ``order[:n]`` by ascending ``a`` (n is at most a few dozen)."""
     for i in range(n):
         order[i] = i
-    for i in range(1, n):
-        k = order[i]
-        key = a[k]
-        j = i - 1
-        while j >= 0 and a[order[j]] > key:
-            order[j + 1] = order[j]
-            j -= 1
-        order[j + 1] = k
+    sort_by_key(order, n, a)
 
 
 @_jit

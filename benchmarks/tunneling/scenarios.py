@@ -3,6 +3,7 @@
 Only MuJoCo and NumPy are needed to build and run them (mjccd only for :meth:`Scenario.ellipsoids`), so the
 speculative-contacts peer (speculative.py) runs them in an environment with another MuJoCo.
 """
+import abc
 import pathlib
 import time
 import xml.etree.ElementTree as ET
@@ -48,7 +49,7 @@ def wall_xml(timestep, speed):
 </mujoco>"""
 
 
-class Scenario:
+class Scenario(abc.ABC):
     """One simulated situation: a model, its start state, the guarded pairs and a tunneling test."""
 
     name = ""
@@ -62,8 +63,9 @@ class Scenario:
         self.params = params
         self.model = self.build()
 
+    @abc.abstractmethod
     def build(self):
-        raise NotImplementedError
+        """The scenario's ``MjModel``."""
 
     def reset(self, data, rng=None):
         """Put ``data`` into the start state; ``rng`` jitters it (start position, speed) for repeated runs."""
@@ -83,9 +85,9 @@ class Scenario:
     def control(self, data):
         """Set controls or mocap before a step (nothing by default)."""
 
+    @abc.abstractmethod
     def tunneled(self, data):
         """True when the current state shows a body gone through the obstacle."""
-        raise NotImplementedError
 
     def spin_gain(self):
         """How much the contact spun a swung body up (boxing only; None where it does not apply)."""

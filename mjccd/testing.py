@@ -10,7 +10,7 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.adapter import ModelAdapter, load_model
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
-from mjccd.mujoco.motions import MOTIONS, State
+from mjccd.mujoco.motions import State
 from mjccd.mujoco.pairs import select_pairs
 
 
@@ -59,8 +59,6 @@ def _setup(model, trajectory, ellipsoids, times, pairs, motion):
         ellipsoids = fit_model(model)
     elif not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
-    if not isinstance(motion, str) or motion not in MOTIONS:
-        raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
     checker = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
     return checker, _states(model, qpos, times)
 

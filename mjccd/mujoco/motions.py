@@ -6,7 +6,6 @@ import numba
 import numpy as np
 
 from mjccd import _validate
-from mjccd import bernstein as bz
 from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import poses_may_touch
 from mjccd.mujoco.chains import hinge_path
@@ -151,34 +150,6 @@ def interpolate_qpos(model, qpos0, qpos1, t):
         elif kind == mujoco.mjtJoint.mjJNT_FREE:
             out[adr + 3:adr + 7] = _lerp_quat(q0[adr + 3:adr + 7], q1[adr + 3:adr + 7], t)
     return out
-
-
-def sweep_sphere(motion):
-    """(centre, radius) of a ball holding the centre path of a chain motion, or None if unknown.
-
-    The centre of the moving frame is ``-G^T h / g^2`` (scaled inverse W); with
-    positive denominator coefficients this rational Bezier curve stays in the
-    convex hull of its control points.
-    """
-    w = motion.scaled_inverse_w()
-    if w is None:
-        return None
-    G, h, g = w
-    num = []
-    for i in range(3):
-        acc = None
-        for k in range(3):
-            term = bz.multiply(G[k, i].copy(), h[k].copy())
-            acc = term if acc is None else acc + term
-        num.append(-acc)
-    den = bz.multiply(g.copy(), g.copy())
-    deg = max(len(num[0]), len(den)) - 1
-    den = bz.elevate(den, deg + 1 - len(den))
-    if np.any(den <= 0.0):
-        return None
-    ctrl = np.stack([bz.elevate(n.copy(), deg + 1 - len(n)) for n in num], axis=1) / den[:, None]
-    centre = 0.5 * (ctrl.min(axis=0) + ctrl.max(axis=0))
-    return centre, float(np.sqrt(np.max(np.sum((ctrl - centre) ** 2, axis=1))))
 
 
 @numba.njit(cache=True, nogil=True)

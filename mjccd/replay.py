@@ -673,6 +673,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     """
     warm_up(checker.motion)  # the first compile (or cache load) is not part of the timing
     model = checker.model
+    checker.qpos_poses(model.qpos0[None])  # nor is the kinematics kernel's
     mocap = model.body_mocapid >= 0
     mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
     counters = dict.fromkeys(COUNTER_NAMES, 0)

@@ -656,7 +656,62 @@ def test_a_pendulum_striking_a_stop_gains_no_energy_under_the_guard(spin):
         assert r.energy_added <= 1e-9 * r.kinetic_energy[0]
     assert split[0].kinetic_energy[1] < 0.5 * split[0].kinetic_energy[0]
     plain = [r for r in reports if len(r.substeps) == 1]
-    assert all(r.kinetic_energy is None and r.energy_added is None and not r.energy_gain for r in plain)
+    assert plain and all(r.kinetic_energy is not None and r.energy_added is None and not r.energy_gain
+                         for r in plain)
+
+
+def kinetic_energy_and_momentum(model, data):
+    """0.5 qvel' M qvel from the dense mass matrix, and the linear momentum summed over bodies (each body's
+    mass times the velocity of its centre of mass), on a copy: independent of the guard's own route."""
+    probe = mujoco.MjData(model)
+    probe.qpos[:], probe.qvel[:] = data.qpos, data.qvel
+    mujoco.mj_forward(model, probe)
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, probe, M)
+    linear = np.zeros(3)
+    for b in range(1, model.nbody):
+        jac = np.zeros((3, model.nv))
+        mujoco.mj_jac(model, probe, jac, None, probe.xipos[b], b)
+        linear += model.body_mass[b] * (jac @ probe.qvel)
+    return 0.5 * probe.qvel @ M @ probe.qvel, linear
+
+
+@pytest.mark.parametrize("speed", [20.0, 200.0])
+def test_every_report_gives_kinetic_energy_and_momentum_at_both_ends(speed):
+    """Plain, clamped and unclamped steps alike: the report's values equal an independent computation at
+    the step's start and end, and one step's end is the next one's start."""
+    model = wall_model(0.002)
+    data = thrown(model, speed)
+    guard = GuardedStepper(model, data, fit_model(model))
+    before = kinetic_energy_and_momentum(model, data)
+    last = None
+    kinds = set()
+    for _ in range(60):
+        report = guard.step()
+        after = kinetic_energy_and_momentum(model, data)
+        kinds.add("clamped" if report.clamps else "split" if len(report.substeps) > 1 else "plain")
+        for end, (energy, linear) in enumerate((before, after)):
+            assert report.kinetic_energy[end] == pytest.approx(energy, rel=1e-9, abs=1e-12)
+            assert report.momentum[end].shape == (6,)
+            assert np.allclose(report.momentum[end][:3], linear, rtol=1e-9, atol=1e-12)
+        if last is not None:
+            assert report.kinetic_energy[0] == last.kinetic_energy[1]
+            assert np.array_equal(report.momentum[0], last.momentum[1])
+        before, last = after, report
+    assert {"plain", "clamped"} <= kinds
+
+
+def test_a_state_changed_between_steps_is_measured_again():
+    model = wall_model(0.002)
+    data = thrown(model, 5.0)
+    guard = GuardedStepper(model, data, fit_model(model))
+    guard.step()
+    data.qvel[:] = 0.0
+    data.qvel[0] = 1.0  # the user changes the state between steps
+    report = guard.step()
+    mass = model.body("ball").mass[0]
+    assert report.kinetic_energy[0] == pytest.approx(0.5 * mass * 1.0, rel=1e-9)
+    assert report.momentum[0][0] == pytest.approx(mass * 1.0, rel=1e-9)
 
 
 def test_a_step_that_adds_energy_is_flagged(monkeypatch):
@@ -782,3 +837,21 @@ def test_energy_tolerance_is_checked():
     model = wall_model(0.002)
     with pytest.raises(ValueError, match="energy_tolerance: expected a finite number >= 0, got -0.1"):
         GuardedStepper(model, mujoco.MjData(model), fit_model(model), energy_tolerance=-0.1)
+
+
+def test_a_moved_mocap_body_is_a_changed_state():
+    """The mocap poses are part of the state a report measures: moving one between steps starts the next
+    report from a state measured again; leaving it starts it from the last report's end."""
+    xml = WALL.format(dt=0.002, half=WALL_HALF, r=BALL, x0=-0.5).replace(
+        "<worldbody>", '<worldbody><body name="marker" mocap="true" pos="0 2 0">'
+                       '<geom type="sphere" size="0.1" contype="0" conaffinity="0"/></body>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = thrown(model, 5.0)
+    guard = GuardedStepper(model, data, fit_model(model))
+    first = guard.step()
+    same = guard.step()
+    assert same.states[0] is first.states[1]
+    data.mocap_pos[0, 2] += 1.0
+    moved = guard.step()
+    assert moved.states[0] is not same.states[1]
+    assert moved.kinetic_energy[0] == pytest.approx(same.kinetic_energy[1], rel=1e-12)

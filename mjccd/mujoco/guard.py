@@ -1,6 +1,6 @@
 """Guarded stepping: roll a MuJoCo step back to the exact first contact so fast bodies cannot tunnel."""
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import mujoco
 import numba
@@ -22,8 +22,7 @@ UNSTABLE = object()  # a piece of a step in which MuJoCo met a bad state
 RAMP_GROWTH = 2.0
 
 
-@dataclass(frozen=True, eq=False)
-class GuardReport:
+class GuardReport(NamedTuple):
     """What one guarded step did.
 
     Attributes:
@@ -37,16 +36,23 @@ class GuardReport:
             disabled, reset the data.  That MuJoCo step is kept as MuJoCo left it and not checked (a jump
             back to the reset pose is no motion), and the step ends there, so ``substeps`` may sum to
             less than the timestep.
-        kinetic_energy: (before, after) the step, in joules (``0.5 qvel' M qvel`` of the whole model), for a
-            step the guard split (clamped, or continuing the ramp of a clamp); None for a step that is one
-            plain ``mj_step`` (MuJoCo's own) and for an unstable one.
+        kinetic_energy: (before, after) the step, in joules (``0.5 qvel' M qvel`` of the whole model), on
+            every report (for an unstable step, "after" is what MuJoCo left: the reset state, or the bad one).
+        momentum: (before, after) the step, each a (6,) array: the model's linear momentum in kg m/s (world
+            frame) and its angular momentum about its centre of mass in kg m^2/s, on every report (from
+            MuJoCo's ``subtree_linvel`` and ``subtree_angmom`` of the world body).  Both are computed when
+            first read, from copies of the two states the step keeps.
         energy_added: for a split step, how much the mechanical energy (kinetic plus MuJoCo's potential:
             gravity and springs) rose more than the work of actuators, applied forces, gravity compensation
             and fluid forces explains, in joules, counted from the start of the clamped step (for a step
             that goes on with its pieces, from the start of the step before); contacts and damping only
-            remove energy, so this is at most rounding in a sound step.  None otherwise.
+            remove energy, so this is at most rounding in a sound step.  None for a step that is one plain
+            ``mj_step``: that step is MuJoCo's own (a soft contact letting go gives back energy its
+            penetration took, which is MuJoCo's contact model, not the guard's), and for an unstable one.
         energy_gain: True when ``energy_added`` exceeds ``energy_tolerance`` (see :class:`GuardedStepper`)
             of the kinetic energy involved: the split step added energy, so its state is not to be trusted.
+        states: the step's (start, end) states (time, positions, velocities, mocap poses), from which
+            ``kinetic_energy`` and ``momentum`` are computed.
     """
 
     substeps: tuple
@@ -54,9 +60,73 @@ class GuardReport:
     rollbacks: int
     exhausted: bool
     unstable: bool = False
-    kinetic_energy: tuple = None
     energy_added: float = None
     energy_gain: bool = False
+    states: tuple = None
+
+    @property
+    def kinetic_energy(self):
+        """(before, after) the step, in joules."""
+        return self.states[0].mechanics()[1], self.states[1].mechanics()[1]
+
+    @property
+    def momentum(self):
+        """(before, after) the step, each (6,): linear momentum (world frame), angular momentum about the
+        centre of mass."""
+        return self.states[0].mechanics()[2], self.states[1].mechanics()[2]
+
+
+class _Meter:
+    """Energy and momentum of a model's states, computed on a private MjData."""
+
+    def __init__(self, model):
+        self.model = model
+        self._data = mujoco.MjData(model)
+
+    def mechanics(self, qpos, qvel, mocap):
+        """(potential energy, kinetic energy, momentum) in joules and a (6,) array: the linear momentum
+        (world frame) and the angular momentum about the centre of mass.  ``mocap``: (positions,
+        quaternions) of the mocap bodies, or None."""
+        m, e = self.model, self._data
+        e.qpos[:] = qpos
+        e.qvel[:] = qvel
+        if mocap is not None:
+            e.mocap_pos[:], e.mocap_quat[:] = mocap
+        mujoco.mj_kinematics(m, e)
+        mujoco.mj_comPos(m, e)
+        if m.ntendon:
+            mujoco.mj_tendon(m, e)
+        mujoco.mj_makeM(m, e)
+        mujoco.mj_energyPos(m, e)
+        mujoco.mj_energyVel(m, e)
+        mujoco.mj_comVel(m, e)
+        mujoco.mj_subtreeVel(m, e)
+        momentum = np.concatenate((m.body_subtreemass[0] * e.subtree_linvel[0], e.subtree_angmom[0]))
+        return float(e.energy[0]), float(e.energy[1]), momentum
+
+
+class _Snapshot:
+    """A state (time, positions and velocities as bytes, mocap poses) whose :meth:`_Meter.mechanics` is
+    computed when first asked for: a plain guarded step only copies its end state."""
+
+    __slots__ = ("meter", "time", "posvel", "mocap", "_value")
+
+    def __init__(self, meter, time, posvel, mocap):
+        self.meter, self.time, self.posvel, self.mocap = meter, time, posvel, mocap
+        self._value = None
+
+    def holds(self, time, posvel, mocap):
+        """True when this is the state ``time``, ``posvel`` (bytes) and ``mocap`` (as in :meth:`mechanics`)."""
+        if time != self.time or posvel != self.posvel:
+            return False
+        return mocap is None or (np.array_equal(mocap[0], self.mocap[0]) and np.array_equal(mocap[1], self.mocap[1]))
+
+    def mechanics(self):
+        if self._value is None:
+            nq = self.meter.model.nq
+            posvel = np.frombuffer(self.posvel)
+            self._value = self.meter.mechanics(posvel[:nq], posvel[nq:], self.mocap)
+        return self._value
 
 
 def _positive(value, field, *, integer=False, allow_zero=False):
@@ -173,9 +243,9 @@ class GuardedStepper:
     ``max_rechecks`` clamps per step; after that the remaining time is one
     unguarded MuJoCo step (reported as ``exhausted``).  A MuJoCo step in
     which MuJoCo meets a bad state (and resets the data) is kept as it is and
-    ends the guarded step (reported as ``unstable``).  A split step reports its
-    kinetic energy before and after and flags energy it added
-    (:class:`GuardReport`).  Everything is deterministic.
+    ends the guarded step (reported as ``unstable``).  Every step reports its
+    kinetic energy and momentum before and after; a split step also flags energy it
+    added (:class:`GuardReport`).  Everything is deterministic.
 
     Args:
         model, data: the simulation; ``data`` is advanced by :meth:`step`.
@@ -224,6 +294,7 @@ class GuardedStepper:
         # without mocap bodies the kinematic state is the positions, which follow the time in the full state
         self._qpos0 = self._state0[1:1 + model.nq] if model.nmocap == 0 else None
         self._qvel0 = self._state0[1 + model.nq:1 + model.nq + model.nv]
+        self._posvel0 = self._state0[1:1 + model.nq + model.nv]
         self._opt = model.opt
         # rigid and affine motions: the lean compiled check; chain motions: the monitor's general check
         self._fast = StepCheck(self.monitor) if self.monitor.scene is not None else None
@@ -234,7 +305,6 @@ class GuardedStepper:
             # the first step's setup, done here: the current poses recorded, so the first step costs what
             # every other step costs
             self._fast.begin(data)
-        self._plain_last = GuardReport((float(model.opt.timestep),), (), 0, False)  # an unclamped step's (shared)
         self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
         # pieces in contact: none shorter, for their growth, than half the shortest contact time constant
         self._contact_half = 0.5 * shortest_contact_time(model)
@@ -244,7 +314,11 @@ class GuardedStepper:
         # the last piece of a split step that ended in contact with pieces still short of the timestep, and
         # the time it ended at: the next step goes on growing them (see _clamped)
         self._ramp, self._ramp_time = None, None
-        self._energy_data = None  # a private MjData for the energies of split steps (made at the first)
+        self._meter = _Meter(model)
+        self._mocap = model.nmocap > 0
+        self._plain_substeps = (float(model.opt.timestep),)  # shared by the reports of unclamped steps
+        self._views_of, self._views = None, None
+        self._last_end = None  # the _Snapshot of the last step's end: the next step's start, if unchanged
         self._warnings_of, self._bad_counts = None, None
         self.last_report = None
         self.clamps_total = 0
@@ -314,7 +388,7 @@ class GuardedStepper:
             hit = self._hit(d, start)
         if hit is None or self.max_rechecks == 0:
             dt = self._opt.timestep
-            report = GuardReport((float(dt),), (), 0, True) if hit is not None else self._plain_report(dt)
+            report = self._plain_report(dt, exhausted=hit is not None)
             self.last_report = report
             return report
         return self._clamped(hit, bad, finish)
@@ -334,15 +408,27 @@ class GuardedStepper:
 
     def _unstable_trial(self, dt):
         """The report of a step whose trial MuJoCo found unstable (and reset): kept as it is, unchecked."""
-        self.last_report = GuardReport((float(dt),), (), 0, False, unstable=True)
+        self.last_report = self._plain_report(dt, unstable=True)
         return self.last_report
 
-    def _plain_report(self, dt):
-        """The shared report of an unclamped step of ``dt`` seconds."""
-        report = self._plain_last
-        if report.substeps[0] != dt:
-            report = self._plain_last = GuardReport((float(dt),), (), 0, False)
-        return report
+    def _plain_report(self, dt, *, exhausted=False, unstable=False):
+        """The report of a step that is one MuJoCo step of ``dt`` seconds from the saved state, with the
+        states at both ends (the hot path of :meth:`_saved_snapshot` and :meth:`_end_snapshot`)."""
+        substeps = self._plain_substeps
+        if substeps[0] != dt:
+            substeps = self._plain_substeps = (float(dt),)
+        last, d = self._last_end, self.data
+        if self._mocap or last is None or last.time != self._state0[0] or last.posvel != self._posvel0.tobytes():
+            return GuardReport(substeps, (), 0, exhausted, unstable,
+                               states=(self._saved_snapshot(), self._end_snapshot()))
+        qpos, qvel = self._views if self._views_of is d else self._watch_views(d)
+        end = self._last_end = _Snapshot(self._meter, d.time, qpos.tobytes() + qvel.tobytes(), None)
+        return GuardReport(substeps, (), 0, exhausted, unstable, None, False, (last, end))
+
+    def _watch_views(self, d):
+        """(qpos, qvel) of ``d`` (views, fetched once per data)."""
+        self._views_of, self._views = d, (d.qpos, d.qvel)
+        return self._views
 
     def _clamped(self, hit, bad, finish, first=None, since=None):
         """The rest of a step whose first trial found ``hit``: roll back, sub-step, check every piece.
@@ -365,14 +451,15 @@ class GuardedStepper:
         substeps, clamps = [], []
         exhausted = unstable = False
         rollbacks = 0
-        if first is None:  # the step's start is the state saved for the trial
-            nq, nv = m.nq, m.nv
-            energy0 = self._energies(self._state0[1:1 + nq], self._state0[1 + nq:1 + nq + nv])
-        else:
-            energy0 = self._energies(d.qpos, d.qvel)
+        # the step's start: the state saved for the trial, or the data (a step going on with its pieces)
+        start = self._saved_snapshot() if first is None else self._snapshot(d.time, d.qpos.tobytes() + d.qvel.tobytes())
         # the energy since the start of the clamped step, and the work of actuators, applied forces, gravity
         # compensation and fluid forces in the pieces kept since
-        base, work = ((sum(energy0), energy0[1]), 0.0) if since is None else since
+        if since is None:
+            energy0 = start.mechanics()
+            base, work = (energy0[0] + energy0[1], energy0[1]), 0.0
+        else:
+            base, work = since
         # controls and applied forces stay as they are through the step: without them (and without forces
         # that do work of their own) no work is counted
         forced = self._forced or d.xfrc_applied.any() or d.qfrc_applied.any()
@@ -449,8 +536,10 @@ class GuardedStepper:
         if (rollbacks or first is not None) and finish is not None:
             finish()
         self.clamps_total += len(clamps)
-        energy = {} if unstable else self._energy_report(energy0, base, work)
-        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted, unstable, **energy)
+        end = self._end_snapshot()
+        energy = {} if unstable else self._energy_report(end.mechanics(), base, work)
+        self.last_report = GuardReport(tuple(substeps), tuple(clamps), rollbacks, exhausted, unstable, **energy,
+                                       states=(start, end))
         if self.on_clamp is not None:
             for c in clamps:
                 self.on_clamp(c)
@@ -479,25 +568,26 @@ class GuardedStepper:
 
     # ------------------------------------------------------------ energy
 
-    def _energies(self, qpos, qvel):
-        """(potential, kinetic) energy in joules of the model at ``qpos``, ``qvel`` (mocap poses and the
-        rest from the data), computed on a private MjData."""
-        m, e = self.model, self._energy_data
-        if e is None:
-            e = self._energy_data = mujoco.MjData(m)
-        e.qpos[:] = qpos
-        e.qvel[:] = qvel
-        if m.nmocap:
-            e.mocap_pos[:] = self.data.mocap_pos
-            e.mocap_quat[:] = self.data.mocap_quat
-        mujoco.mj_kinematics(m, e)
-        mujoco.mj_comPos(m, e)
-        if m.ntendon:
-            mujoco.mj_tendon(m, e)
-        mujoco.mj_makeM(m, e)
-        mujoco.mj_energyPos(m, e)
-        mujoco.mj_energyVel(m, e)
-        return float(e.energy[0]), float(e.energy[1])
+    def _snapshot(self, time, posvel):
+        """The :class:`_Snapshot` of a state of the data at ``time`` with positions and velocities
+        ``posvel`` (bytes): the last step's end when it is that state."""
+        d = self.data
+        mocap = (d.mocap_pos.copy(), d.mocap_quat.copy()) if self.model.nmocap else None
+        last = self._last_end
+        if last is not None and last.holds(time, posvel, mocap):
+            return last
+        return _Snapshot(self._meter, float(time), posvel, mocap)
+
+    def _saved_snapshot(self):
+        """The snapshot of the state saved at the step's start (``_state0``)."""
+        return self._snapshot(self._state0[0], self._posvel0.tobytes())
+
+    def _end_snapshot(self):
+        """The snapshot of the data, which holds a step's end; kept for the next step's start."""
+        d = self.data
+        mocap = (d.mocap_pos.copy(), d.mocap_quat.copy()) if self.model.nmocap else None
+        self._last_end = _Snapshot(self._meter, d.time, d.qpos.tobytes() + d.qvel.tobytes(), mocap)
+        return self._last_end
 
     def _displace(self, moved, h):
         """Add to ``moved`` (None: nothing to count) the generalized displacement of the MuJoCo step of ``h``
@@ -519,9 +609,9 @@ class GuardedStepper:
             mujoco.mj_applyFT(m, d, xfrc[b, :3], xfrc[b, 3:], d.xipos[b], int(b), qfrc)
         return float(qfrc @ moved)
 
-    def _energy_report(self, energy0, base, work):
-        """The energy fields of the report of a split step that started with ``energy0`` (potential,
-        kinetic); the data holds its end.
+    def _energy_report(self, energy1, base, work):
+        """The energy fields of the report of a split step that ended with ``energy1`` (potential, kinetic,
+        momentum).
 
         ``base``: (mechanical, kinetic) energy at the start of the step that was clamped (this one, or the
         one whose pieces this step goes on growing), ``work``: of external forces since then.  The energy
@@ -529,12 +619,9 @@ class GuardedStepper:
         penetration took, so a step of the ramp may end with more energy than it started with, never more
         than the clamped step started with.
         """
-        d = self.data
-        energy1 = self._energies(d.qpos, d.qvel)
-        added = sum(energy1) - base[0] - work
+        added = energy1[0] + energy1[1] - base[0] - work
         scale = max(base[1], energy1[1]) + abs(work)
-        return {"kinetic_energy": (energy0[1], energy1[1]), "energy_added": added,
-                "energy_gain": bool(added > self.energy_tolerance * scale and added > 0.0)}
+        return {"energy_added": added, "energy_gain": bool(added > self.energy_tolerance * scale and added > 0.0)}
 
     def _reach(self, hit):
         """:func:`reach_fraction` of ``hit`` in the piece just taken (from ``_state0`` to the data), from the

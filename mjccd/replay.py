@@ -7,7 +7,10 @@ with tan(theta/2) linear), and every pair is checked exactly over the frame
 interval.  The bounding ellipsoids are the model's ellipsoid geoms in geom
 group 5 (all ellipsoid geoms when group 5 has none).  By default a pair is
 checked when its two ellipsoids hang under different top-level bodies and at
-least one of them moves.
+least one of them moves; a model with one character (an imported skeleton)
+falls back to that character's self-collisions, every pair of bodies that are
+neither one rigid body nor a parent and a child (``--pairs self``), and says
+so with a :class:`~mjccd.mujoco.warnings.CoverageWarning`.
 
 Inputs are checked before any work: a bad model or trajectory stops with a
 :class:`ReplayError` naming the file and the problem.  The frames run in
@@ -31,6 +34,7 @@ import os
 import pathlib
 import sys
 import time as _time
+import warnings
 import zipfile
 import zlib
 from contextlib import ExitStack, closing, contextmanager
@@ -44,9 +48,10 @@ from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 from mjccd.mujoco import adapter
 from mjccd.mujoco.adapter import ModelAdapter
-from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, geom_ellipsoids
+from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, body_label, geom_ellipsoids
 from mjccd.mujoco.motions import State, as_state
-from mjccd.mujoco.pairs import character_pairs
+from mjccd.mujoco.pairs import PAIR_RULES, pairs_with_reason
+from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.scene import FrameCounters
 
 MOTIONS = ("rigid", "affine", "chain")
@@ -90,8 +95,10 @@ def replay_ellipsoids(model, pairs=None, source="model"):
     """``(ellipsoids, pairs)``: the model's bounding ellipsoids (:class:`~mjccd.mujoco.EllipsoidSet`) and the
     (P, 2) pairs to check (see the module docstring).
 
-    ``pairs``: ellipsoid index pairs, or None for :func:`mjccd.mujoco.pairs.character_pairs`.
-    ``source`` (the model file) starts the error messages.
+    ``pairs``: ellipsoid index pairs; ``"characters"`` (:func:`mjccd.mujoco.pairs.character_pairs`);
+    ``"self"`` (:func:`mjccd.mujoco.pairs.self_pairs`); or None: ``"characters"``, and when all the
+    ellipsoids hang under one top-level body, ``"self"`` instead, said by a
+    :class:`~mjccd.mujoco.warnings.CoverageWarning`.  ``source`` (the model file) starts the error messages.
     """
     try:
         ellipsoids = geom_ellipsoids(model, any_group=True)
@@ -104,10 +111,23 @@ def replay_ellipsoids(model, pairs=None, source="model"):
     if len(bad):
         raise ReplayError(f"{source}: ellipsoid {ellipsoids.geoms[bad[0]]!r} has semi-axes "
                           f"{ellipsoids.radii[bad[0]].tolist()}; replay supports {low:g} to {high:g} m")
-    if pairs is None:
-        pairs = character_pairs(model, ellipsoids)
-        if not len(pairs):
-            raise ReplayError(f"{source}: no pair of ellipsoids under different top-level bodies that moves")
+    if pairs is None or isinstance(pairs, str):
+        if pairs is not None and pairs not in PAIR_RULES:
+            raise ReplayError(f"pairs: expected one of {', '.join(PAIR_RULES)}, or ellipsoid index pairs, "
+                              f"got {pairs!r}")
+        ids = ellipsoids.body_ids(model)
+        chosen, why = pairs_with_reason(model, ellipsoids, pairs or "characters", ids)
+        tops = set(model.body_rootid[ids].tolist())
+        if pairs is None and not len(chosen) and len(tops) == 1:
+            chosen, why = pairs_with_reason(model, ellipsoids, "self", ids)
+            if len(chosen):
+                top = body_label(model, tops.pop())
+                warnings.warn(f"{source}: one character ({top!r}): checking its self-collisions, {len(chosen)} "
+                              f"pairs of ellipsoids on bodies neither rigidly joined nor parent and child "
+                              f"(--pairs self)", CoverageWarning, stacklevel=2)
+        if not len(chosen):
+            raise ReplayError(f"{source}: {why}")
+        pairs = chosen
     try:
         pairs = adapter.checked_pairs(pairs, len(ellipsoids))
     except InputError as exc:
@@ -604,7 +624,8 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
         motion: ``"rigid"``, ``"affine"`` or ``"chain"`` between consecutive frames.
         out_dir: where to write contacts.json, contacts.csv, timeline.png and frames (None: nothing);
             a folder holding another run's files is refused unless ``force`` (see :class:`OutputFolder`).
-        pairs: (P, 2) ellipsoid index pairs to check instead of the default.
+        pairs: (P, 2) ellipsoid index pairs to check, ``"characters"`` or ``"self"``; None: the default
+            (see :func:`replay_ellipsoids`).
         chunk_frames: frame intervals per chunk of compiled work (Ctrl-C is acted on between chunks);
             None: the motion's :data:`CHUNK_FRAMES`.  The results do not depend on it.
         read_frames: frames read from the trajectory file at a time (None: :data:`READ_FRAMES`); the
@@ -1085,14 +1106,39 @@ def _folder_name(text):
     return text
 
 
+@contextmanager
+def _coverage_notes():
+    """Within the block each distinct :class:`~mjccd.mujoco.warnings.CoverageWarning` (the pairs chosen) is one
+    line ``mjccd replay: TEXT`` on stderr, when it is raised; other warnings show as usual."""
+    seen = set()
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if not issubclass(category, CoverageWarning):
+                shown(message, category, filename, lineno, file, line)
+            elif str(message) not in seen:
+                seen.add(str(message))
+                print(f"mjccd replay: {message}", file=sys.stderr)
+
+        warnings.showwarning = show
+        warnings.simplefilter("always", CoverageWarning)
+        yield
+
+
 def main(argv=None):
-    """``mjccd replay MODEL.xml TRAJ [--motion ...] [--out DIR [--force]]``; returns the exit status."""
+    """``mjccd replay MODEL.xml TRAJ [--motion ...] [--pairs ...] [--out DIR [--force]]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="mjccd replay",
                                      description="Replay a trajectory and report the first contacts "
                                                  "between bounding ellipsoids.")
     parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 5)")
     parser.add_argument("traj", help=".npz with qpos (T x nq) and time (T), or a .bvh clip")
     parser.add_argument("--motion", choices=MOTIONS, default="rigid", help="motion between frames")
+    parser.add_argument("--pairs", choices=PAIR_RULES,
+                        help="pairs to check: 'characters' (ellipsoids under different top-level bodies, at "
+                             "least one moving) or 'self' (within each top-level body, bodies neither rigidly "
+                             "joined nor parent and child); default: 'characters', or 'self' when the model "
+                             "has one character")
     parser.add_argument("--out", type=_folder_name,
                         help="folder for contacts.json, contacts.csv, timeline.png, frames (written only when "
                              "the replay completes; a folder holding another run needs --force)")
@@ -1108,16 +1154,19 @@ def main(argv=None):
         os.environ["MUJOCO_GL"] = "egl"  # must be chosen before mujoco is first imported
     try:
         keys = None
-        if args.intervals:  # checked before the replay runs
-            model = load_model(args.model)
-            checker = ModelAdapter(model, *replay_ellipsoids(model, source=args.model), "chain")
-            keys = load_keyframes(args.traj, model)
-            for k in range(len(keys) - 1):
-                try:
-                    checker.chain_motions(as_state(model, keys[k], "keyframes"), as_state(model, keys[k + 1], "keyframes"))
-                except InputError as exc:
-                    raise ReplayError(f"{args.traj}: keyframes {k} to {k + 1}: {exc}") from None
-        result = replay(args.model, args.traj, args.motion, args.out, render=not args.no_render, force=args.force)
+        with _coverage_notes():
+            if args.intervals:  # checked before the replay runs
+                model = load_model(args.model)
+                checker = ModelAdapter(model, *replay_ellipsoids(model, args.pairs, source=args.model), "chain")
+                keys = load_keyframes(args.traj, model)
+                for k in range(len(keys) - 1):
+                    try:
+                        checker.chain_motions(as_state(model, keys[k], "keyframes"),
+                                              as_state(model, keys[k + 1], "keyframes"))
+                    except InputError as exc:
+                        raise ReplayError(f"{args.traj}: keyframes {k} to {k + 1}: {exc}") from None
+            result = replay(args.model, args.traj, args.motion, args.out, pairs=args.pairs,
+                            render=not args.no_render, force=args.force)
     except (ValueError, MjccdError) as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)
         return 2

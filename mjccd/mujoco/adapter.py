@@ -182,6 +182,8 @@ class ModelAdapter:
         self.chain_filter = cb.ChainFilter(self.chains.program, self.radii, self.pairs) \
             if motion == "chain" and chain_filters and len(self.pairs) else None
         self._cached = None  # (state, poses) of the last end state
+        # the scene's pair outcome counters of its last check (its own buffer, read after each check)
+        self._counters = self.scene.workspace.arrays.counters if self.scene is not None else None
 
     @cached_property
     def chains(self):
@@ -299,7 +301,8 @@ class ModelAdapter:
         return InputError(f"{name}: the pose of ellipsoid {k} (body {self.labels[self.body_ids[k]]!r}) is not "
                           f"finite (largest |qpos| {np.abs(state.qpos).max():.3g})")
 
-    def _finite(self, states, poses, names):
+    def check_finite(self, states, poses, names):
+        """Raise the InputError of :meth:`_pose_error` when some of ``poses`` (one per state) is not finite."""
         for state, p, name in zip(states, poses, names):
             if not np.isfinite(p).all():
                 raise self._pose_error(state, p, name) from None
@@ -308,23 +311,38 @@ class ModelAdapter:
         """Rigid and affine motions: the batched :class:`mjccd.scene.Scene` pipeline."""
         p0, p1 = poses
         try:
-            frame = self.scene.step(p0, p1, all_pairs=all_pairs, new_contacts_only=new_only)
+            return self.check_poses(s0.time, s1.time, p0, p1, all_pairs=all_pairs, new_only=new_only)
         except InputError:  # the scene names its own arguments: name the state instead
-            self._finite((s0, s1), (p0, p1), names)
+            self.check_finite((s0, s1), (p0, p1), names)
             raise
 
-        def convert(pc):
-            return self.contact(s0.time, s1.time, pc.pair, pc.time, pc.point, pc.normal, p0, pc.bracket)
+    def check_poses(self, t0, t1, p0, p1, *, all_pairs=False, new_only=False):
+        """The :class:`StepReport` of the rigid or affine motion between ellipsoid poses p0 and p1 ((N, 7),
+        e.g. :attr:`~mjccd.mujoco.monitor.StepCheck.poses`) of a step from time ``t0`` to ``t1``: what
+        :meth:`check` answers for the two states, for callers that hold the poses (the monitor's steps).
+        ``all_pairs``, ``new_only`` as in :meth:`check`; a bad pose raises the scene's InputError."""
+        scene = self.scene
+        if all_pairs:
+            frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)
+            first = None if frame.first is None else self._converted(t0, t1, frame.first, p0)
+            contacts = tuple(sorted((self._converted(t0, t1, c, p0) for c in frame.contacts),
+                                    key=lambda c: c.fraction))
+        else:
+            hit = scene.first_contact(p0, p1, new_contacts_only=new_only)
+            first = None if hit is None else self._converted(t0, t1, hit, p0)
+            contacts = ()
+        counters = dict(zip(COUNTER_NAMES, self._counters.tolist()))
+        return StepReport(first, contacts, counters["pairs"], counters["solved_exactly"], counters["uncertain"],
+                          False, counters)
 
-        first = None if frame.first is None else convert(frame.first)
-        contacts = tuple(sorted((convert(c) for c in frame.contacts), key=lambda c: c.fraction))
-        c = frame.counters
-        return StepReport(first, contacts, c.pairs, c.solved_exactly, c.uncertain, False, vars(c))
+    def _converted(self, t0, t1, hit, p0):
+        """The :class:`StepContact` of a scene contact (``FirstContact`` or ``PairContact``)."""
+        return self.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket)
 
     def _check_chain(self, s0, s1, poses, names, all_pairs, new_only):
         """Chain motions: the chain filters, then the exact solver pair by pair."""
         p0 = poses[0]
-        self._finite((s0, s1), poses, names)
+        self.check_finite((s0, s1), poses, names)
         chains = self.chains
         v0, v1 = chains.values(s0), chains.values(s1)
         chains.check_turns(v0, v1)

@@ -1,10 +1,13 @@
 """CCDMonitor: the exact first contact of every MuJoCo step between fitted ellipsoids."""
+from types import MappingProxyType
+
 import mujoco
 import numpy as np
 
 from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import poses_may_touch
-from mjccd.mujoco.adapter import UNSTABLE_REPORT, ModelAdapter, StepContact, StepReport  # noqa: F401 (re-exported)
+from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
+                                  StepContact, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
 from mjccd.mujoco.pairs import select_pairs
 from mjccd.mujoco.motions import MOTIONS, as_state, capture, ellipsoid_poses_into, poses_then_may_touch
@@ -16,6 +19,8 @@ KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_
 BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
                       mujoco.mjtWarning.mjWARN_BADQACC)
 BAD_COUNTS = slice(int(BAD_STATE_WARNINGS[0]), int(BAD_STATE_WARNINGS[-1]) + 1)  # adjacent in mjtWarning
+# what every step of a monitor without pairs reports (the pairs' selection warned why there are none)
+NO_PAIR_REPORT = StepReport(None, (), 0, 0, 0, False, MappingProxyType(dict.fromkeys(COUNTER_NAMES, 0)))
 
 
 def step_count(value, field):
@@ -99,6 +104,8 @@ class CCDMonitor:
         self.adapter = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
         self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
         self.last_report = None
+        self._idle = len(self.pairs) == 0  # no pair: a step is the step alone (see advance_checked)
+        self._poses = None  # the StepCheck that keeps the poses of advance_checked's steps (scene motions)
 
     @property
     def scene(self):
@@ -140,13 +147,34 @@ class CCDMonitor:
         d = self.data
         counts = d.warning.number[BAD_COUNTS]
         counts_before, time_before = counts.tobytes(), d.time
-        s0 = capture(d)
+        if self._idle:  # no pair to check: no state copies, no kinematics, only MuJoCo's bad-state test
+            advance()
+            self.last_report = UNSTABLE_REPORT if went_bad(d, counts, counts_before, time_before) else NO_PAIR_REPORT
+            return self.last_report
+        poses = self._poses
+        if poses is None and self.adapter.scene is not None:
+            poses = self._poses = StepCheck(self)
+        if poses is None:
+            s0 = capture(d)
+        else:  # rigid and affine motions: the poses of both ends by one compiled call each, no state copies
+            poses.begin(d)
         advance()
         if went_bad(d, counts, counts_before, time_before):
             self.adapter.forget()
             self.last_report = UNSTABLE_REPORT
             return UNSTABLE_REPORT
-        return self._check(s0, capture(d), (f"data before {step_name}", f"data after {step_name}"))
+        names = (f"data before {step_name}", f"data after {step_name}")
+        if poses is None:
+            return self._check(s0, capture(d), names)
+        poses.end(d)
+        try:
+            report = self.adapter.check_poses(time_before, d.time, *poses.poses, all_pairs=self.all_pairs,
+                                              new_only=not self.report_overlapping)
+        except InputError:  # a pose that is not finite: named in the user's terms
+            s1 = capture(d)
+            self.adapter.check_finite((s1, s1), poses.poses, names)
+            raise
+        return self._reported(report)
 
     def check(self, state_t0, state_t1):
         """First contact while moving from state_t0 to state_t1 (``MjData``, :class:`State` or qpos).
@@ -160,8 +188,11 @@ class CCDMonitor:
 
     def _check(self, s0, s1, names):
         """The :class:`StepReport` of the motion from state s0 to s1 (``names``: theirs, for errors)."""
-        report = self.adapter.check(s0, s1, all_pairs=self.all_pairs, new_only=not self.report_overlapping,
-                                    names=names)
+        return self._reported(self.adapter.check(s0, s1, all_pairs=self.all_pairs,
+                                                 new_only=not self.report_overlapping, names=names))
+
+    def _reported(self, report):
+        """Keep ``report`` as ``last_report`` and pass its contacts to ``on_contact``."""
         self.last_report = report
         if self.on_contact is not None:
             for c in (report.contacts if self.all_pairs else ((report.first,) if report.first else ())):
@@ -251,6 +282,20 @@ class StepCheck:
             kd = self._fill(idx, kb, state)
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
+
+    def end(self, data):
+        """Record the state at the end of the step begun last (its poses: :attr:`poses`)."""
+        state = self._state_of(data)
+        kb = state.tobytes()
+        slots = self._slots
+        start = self._start
+        if slots[start][1] == kb:
+            self._end = start
+            return
+        idx = 1 - start
+        kd = self._fill(idx, kb, state)
+        self._end = idx
+        ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
 
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call

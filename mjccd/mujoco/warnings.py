@@ -1,4 +1,5 @@
-"""MuJoCo's warning texts, kept out of the working folder.
+"""Warnings of the MuJoCo layer: MuJoCo's own warning texts kept out of the working folder, and
+:class:`CoverageWarning`, said when mjccd checks less than MuJoCo would collide.
 
 Left alone, MuJoCo prints a warning and appends it to ``MUJOCO_LOG.TXT`` in
 the current folder; a command must neither litter nor lose it.
@@ -6,6 +7,15 @@ the current folder; a command must neither litter nor lose it.
 from contextlib import contextmanager
 
 import mujoco
+
+
+class CoverageWarning(UserWarning):
+    """mjccd checks less than MuJoCo would collide: no pair at all (and why), or a geom it cannot check yet
+    (a height field, an SDF, a plane that moves with a mocap body).
+
+    Raised through :func:`warnings.warn`, so the usual filters apply, e.g.
+    ``warnings.simplefilter("error", CoverageWarning)`` in a test, or ``"ignore"`` where it is expected.
+    """
 
 
 @contextmanager

@@ -25,6 +25,11 @@ except ImportError:
     dm_env = specs = None
 
 OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
+# the ccd/* entries of every step of a CCDWrapper with no pair to check: shared, so read-only
+_NO_CONTACT = {"ccd/contact_time": np.array(np.inf), "ccd/contact_pair": np.full(2, -1, np.int32),
+               "ccd/contact_point": np.zeros(3), "ccd/contact_normal": np.zeros(3)}
+for _entry in _NO_CONTACT.values():
+    _entry.flags.writeable = False
 
 
 def fitted_or_checked(model, ellipsoids, per):
@@ -213,7 +218,11 @@ class CCDWrapper(DelegatingEnvironment):
     substeps and ``last_unstable`` whether MuJoCo met a bad state in one of
     them (that substep is not checked; see :attr:`~mjccd.mujoco.StepReport.unstable`).
     As with dm-control's own stepping, such a substep raises ``PhysicsError``
-    unless the physics suppresses errors.
+    unless the physics suppresses errors.  With no pair to check (warned once,
+    when the pairs are chosen) a step is the environment's own step, the
+    no-contact entries (shared read-only arrays) added to the observation it
+    returns: no substep is hooked, no state copied, no kinematics run;
+    ``last_reports`` stays empty and ``last_unstable`` False.
 
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
@@ -232,6 +241,7 @@ class CCDWrapper(DelegatingEnvironment):
             model, physics.data.ptr, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact,
             all_pairs=all_pairs, report_overlapping=report_overlapping)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
+        self._idle = len(self.monitor.pairs) == 0  # no pair to check (select_pairs warned why)
 
     def _with_ccd(self, timestep, recorded):
         obs = collections.OrderedDict(timestep.observation)
@@ -246,6 +256,12 @@ class CCDWrapper(DelegatingEnvironment):
         return self._with_ccd(self._env.reset(), False)
 
     def step(self, action):
+        if self._idle:  # nothing to check: the environment's step, its observation given the no-contact entries
+            timestep = self._env.step(action)
+            if isinstance(timestep.observation, dict):  # made afresh for this step (dm-control's tasks): in place
+                timestep.observation.update(_NO_CONTACT)
+                return timestep
+            return self._with_ccd(timestep, False)
         physics = self._env.physics
         if physics.model.ptr is not self.monitor.model:
             raise InputError("env: the physics model was reloaded; wrap the environment again")

@@ -461,3 +461,20 @@ def test_replay_of_an_imported_skeleton_checks_its_self_collisions(tmp_path, cap
     assert "24 frames (23 intervals), 27 ellipsoids, 334 pairs" in out
     assert cli.main(["replay", str(fitted), str(short), "--no-render", "--pairs", "characters"]) == 2
     assert "use pairs='self' for self-collision" in capsys.readouterr().err
+
+
+def test_a_gymnasium_wrapper_without_pairs_adds_the_no_contact_entries():
+    gymnasium = pytest.importorskip("gymnasium")
+    from mjccd.mujoco.gym import CCDGymWrapper
+
+    try:
+        env = gymnasium.make("InvertedPendulum-v5")
+    except Exception as exc:  # gymnasium without its MuJoCo environments
+        pytest.skip(f"InvertedPendulum-v5: {exc}")
+    with pytest.warns(CoverageWarning, match="^no pair to check: "):
+        wrapped = CCDGymWrapper(env)
+    wrapped.reset(seed=0)
+    info = wrapped.step(np.zeros(1))[4]["ccd"]
+    assert np.isinf(info["contact_time"]) and tuple(info["contact_pair"]) == (-1, -1)
+    assert (info["contacts"], info["reports"], info["unstable"]) == ([], [], False)
+    assert (wrapped.last_contacts, wrapped.last_reports) == ([], [])

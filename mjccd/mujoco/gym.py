@@ -3,7 +3,7 @@ import gymnasium
 
 from mjccd.errors import InputTypeError
 from mjccd.mujoco.monitor import step_count
-from mjccd.mujoco.wrappers import model_and_data, substep_monitor
+from mjccd.mujoco.wrappers import NO_CONTACT, model_and_data, substep_monitor
 
 
 class CCDGymWrapper(gymnasium.Wrapper):
@@ -31,8 +31,15 @@ class CCDGymWrapper(gymnasium.Wrapper):
             model, data, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact, all_pairs=all_pairs,
             report_overlapping=report_overlapping)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
+        self._idle = len(self.monitor.pairs) == 0  # no pair to check (select_pairs warned why)
 
     def step(self, action):
+        if self._idle:  # nothing to check: the environment's own step, with the no-contact entries
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            info = dict(info)
+            info["ccd"] = {key.split("/", 1)[1]: value for key, value in NO_CONTACT.items()}
+            info["ccd"].update(contacts=[], reports=[], unstable=False)
+            return obs, reward, terminated, truncated, info
         base, model, data = model_and_data(self.env)
         recorder = self._recorder
         recorder.begin(data)

@@ -26,9 +26,9 @@ except ImportError:
 
 OBSERVATION_KEYS = ("ccd/contact_time", "ccd/contact_pair", "ccd/contact_point", "ccd/contact_normal")
 # the ccd/* entries of every step of a CCDWrapper with no pair to check: shared, so read-only
-_NO_CONTACT = {"ccd/contact_time": np.array(np.inf), "ccd/contact_pair": np.full(2, -1, np.int32),
+NO_CONTACT = {"ccd/contact_time": np.array(np.inf), "ccd/contact_pair": np.full(2, -1, np.int32),
                "ccd/contact_point": np.zeros(3), "ccd/contact_normal": np.zeros(3)}
-for _entry in _NO_CONTACT.values():
+for _entry in NO_CONTACT.values():
     _entry.flags.writeable = False
 
 
@@ -259,7 +259,7 @@ class CCDWrapper(DelegatingEnvironment):
         if self._idle:  # nothing to check: the environment's step, its observation given the no-contact entries
             timestep = self._env.step(action)
             if isinstance(timestep.observation, dict):  # made afresh for this step (dm-control's tasks): in place
-                timestep.observation.update(_NO_CONTACT)
+                timestep.observation.update(NO_CONTACT)
                 return timestep
             return self._with_ccd(timestep, False)
         physics = self._env.physics

@@ -3,6 +3,7 @@ from mjccd.cases import solve_cases
 from mjccd.ccd import Contact, collision_intervals, first_contact
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Motion, Rational,
                           Rigid, Slide, Static)
+from mjccd.plane import Plane, plane_collision_intervals, plane_first_contact, solve_plane
 from mjccd.quadric import (Ellipsoid, SeparatingPlane, contact_point, separating_plane,
                            static_status, static_status_many)
 
@@ -11,5 +12,6 @@ __all__ = [
     "Motion", "Rational", "Rigid", "SeparatingPlane", "Slide", "Static", "collision_intervals",
     "contact_point", "first_contact", "separating_plane", "solve_cases", "static_status",
     "static_status_many",
+    "Plane", "plane_collision_intervals", "plane_first_contact", "solve_plane",
 ]
 __version__ = "0.1.0"

@@ -18,6 +18,21 @@ quaternion lerp; affine: centre and shape matrix lerp) and answers with a
    best time so far as ``t_max``; a pair whose spheres meet only after it is
    not solved at all.
 
+**Planes.**  A scene may also hold K static planes (MuJoCo ``plane`` geoms:
+floors, walls), each the solid half-space below ``n . x = offset`` (see
+:class:`mjccd.plane.Plane`), and Q *plane pairs* (ellipsoid, plane).  Pair
+indices run over both kinds: 0 .. P - 1 are the rows of :attr:`Scene.pairs`,
+P .. P + Q - 1 the rows of :attr:`Scene.plane_pairs` (``Scene.plane_pair(k)``
+maps one back).  A plane pair is filtered by its bounding sphere against the
+plane (the centre's signed distance is linear in t, so its smallest value is
+at an end of the frame: clear when both ends exceed the largest semi-axis;
+in contact at t = 0 when the centre is closer than the support along n),
+then solved exactly by :func:`mjccd.plane.plane_pair_kernel`; its contact is
+a :class:`PlaneContact`.  It shares the outcome codes, the
+counters (a cleared plane pair counts as ``sphere_culled``) and the
+earliest-contact bound of the ellipsoid pairs.  A scene without planes runs
+exactly as before.
+
 The scene's arrays (its radii and pairs, the plane cache, the per-pair
 results of the last frame, the scratch of the kernels) are one
 :class:`Workspace`, which the kernels take as one argument, a
@@ -37,8 +52,9 @@ from numba.extending import intrinsic, overload
 
 from mjccd import _validate
 from mjccd import filters as fl
-from mjccd.ccd import exact_pair, same_orientation
+from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
+from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, plane_pair_kernel, plane_rows
 from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
 from mjccd.sorting import sort_by_key
 
@@ -94,8 +110,10 @@ def read_ticks():
 class Workspace(NamedTuple):
     """The named arrays of a :class:`Scene`, shared by its Python layer and its compiled kernels.
 
-    N ellipsoids, P pairs.  The kernels write the per-pair results and the
-    plane cache in place; nothing here is reallocated while the scene lives.
+    N ellipsoids, P pairs, K planes, Q plane pairs.  The per-pair results
+    (``outcome`` .. ``ticks``, ``cand``) have P + Q rows: the pairs, then the
+    plane pairs.  The kernels write them and the plane cache in place;
+    nothing here is reallocated while the scene lives.
     """
 
     radii: np.ndarray       # (N, 3) semi-axes
@@ -110,13 +128,13 @@ class Workspace(NamedTuple):
     q0: np.ndarray          # (N, 4) unit quaternions at the start
     p1: np.ndarray          # (N, 3) positions at the end
     q1: np.ndarray          # (N, 4) unit quaternions at the end, as given (any sign)
-    outcome: np.ndarray     # (P,) int8 outcome code of the last frame (OUTCOME_NAMES)
-    entry: np.ndarray       # (P,) sphere-entry time (-1: the spheres never meet or the pair was left out)
-    times: np.ndarray       # (P,) first contact (-1: none found), the bracket's low end when uncertain
-    times_hi: np.ndarray    # (P,) the bracket's high end (UNCERTAIN pairs only)
-    points: np.ndarray      # (P, 3) touching point of the first contact (world)
-    normals: np.ndarray     # (P, 3) unit normal out of the first ellipsoid (world)
-    ticks: np.ndarray       # (P,) int64 CPU cycles per pair (timed runs only)
+    outcome: np.ndarray     # (P + Q,) int8 outcome code of the last frame (OUTCOME_NAMES)
+    entry: np.ndarray       # (P + Q,) sphere-entry time (-1: the spheres never meet or the pair was left out)
+    times: np.ndarray       # (P + Q,) first contact (-1: none found), the bracket's low end when uncertain
+    times_hi: np.ndarray    # (P + Q,) the bracket's high end (UNCERTAIN pairs only)
+    points: np.ndarray      # (P + Q, 3) touching point of the first contact (world)
+    normals: np.ndarray     # (P + Q, 3) unit normal out of the first ellipsoid (world)
+    ticks: np.ndarray       # (P + Q,) int64 CPU cycles per pair (timed runs only)
     counters: np.ndarray    # (N_COUNTERS,) int64, in the order of FrameCounters
     q1_aligned: np.ndarray  # (N, 4) scratch: q1 on the side of q0
     S: np.ndarray           # (N, 3, 3, 3 | 5) scratch: inverse shape polynomials (filters.support_*)
@@ -125,25 +143,35 @@ class Workspace(NamedTuple):
     R1: np.ndarray          # (N, 3, 3) scratch: rotations at t = 1
     work: np.ndarray        # filters.WORK_SHAPE scratch of the witness kernels
     scratch: np.ndarray     # (4, 3) scratch: the centres of one pair
-    cand: np.ndarray        # (P,) int64 scratch: the pairs left for the exact solver
+    cand: np.ndarray        # (P + Q,) int64 scratch: the pairs left for the exact solver
     ready: np.ndarray       # (N,) bool scratch: per-ellipsoid data prepared in this frame
     aff_scratch: np.ndarray  # (8, 3, 3) scratch of filters.support_affine
+    planes: np.ndarray      # (K, 4) [nx, ny, nz, offset], unit normals: the half-spaces n . x <= offset
+    plane_pairs: np.ndarray  # (Q, 2) int64 (ellipsoid index, plane index)
+    plane_min_motion: np.ndarray  # (Q,) as min_motion, for the plane pairs
+    plane_work: np.ndarray  # (mjccd.plane.PLANE_WORK,) scratch of the plane kernels
+    plane_touch: np.ndarray  # (2, 3) scratch: point and normal of a plane contact
 
 
-def new_workspace(radii, pairs, affine, plane_cache):
-    """A :class:`Workspace` for (N, 3) ``radii`` and (P, 2) int64 ``pairs`` (both already validated)."""
-    n, npairs = len(radii), len(pairs)
+def new_workspace(radii, pairs, affine, plane_cache, planes=None, plane_pairs=None):
+    """A :class:`Workspace` for (N, 3) ``radii``, (P, 2) int64 ``pairs``, (K, 4) ``planes`` and (Q, 2) int64
+    ``plane_pairs`` (all already validated; no planes by default)."""
+    planes = np.zeros((0, 4)) if planes is None else np.ascontiguousarray(planes, dtype=np.float64)
+    plane_pairs = (np.zeros((0, 2), dtype=np.int64) if plane_pairs is None
+                   else np.ascontiguousarray(plane_pairs, dtype=np.int64))
+    n, npairs, nall = len(radii), len(pairs), len(pairs) + len(plane_pairs)
     radii = np.ascontiguousarray(radii, dtype=np.float64)
     return Workspace(radii, np.ascontiguousarray(radii.max(axis=1)) if n else np.empty(0),
                      np.ascontiguousarray(pairs, dtype=np.int64), np.zeros(npairs), bool(affine), bool(plane_cache),
                      np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int8),
                      np.zeros((n, 3)), np.zeros((n, 4)), np.zeros((n, 3)), np.zeros((n, 4)),
-                     np.zeros(npairs, dtype=np.int8), np.zeros(npairs), np.zeros(npairs), np.zeros(npairs),
-                     np.zeros((npairs, 3)), np.zeros((npairs, 3)), np.zeros(npairs, dtype=np.int64),
+                     np.zeros(nall, dtype=np.int8), np.zeros(nall), np.zeros(nall), np.zeros(nall),
+                     np.zeros((nall, 3)), np.zeros((nall, 3)), np.zeros(nall, dtype=np.int64),
                      np.zeros(N_COUNTERS, dtype=np.int64),
                      np.zeros((n, 4)), np.zeros((n, 3, 3, 5 if affine else 3)), np.zeros((n, 5)),
                      np.zeros((n, 3, 3)), np.zeros((n, 3, 3)), np.zeros(fl.WORK_SHAPE), np.zeros((4, 3)),
-                     np.zeros(npairs, dtype=np.int64), np.zeros(n, dtype=np.bool_), np.zeros((8, 3, 3)))
+                     np.zeros(nall, dtype=np.int64), np.zeros(n, dtype=np.bool_), np.zeros((8, 3, 3)),
+                     planes, plane_pairs, np.zeros(len(plane_pairs)), np.zeros(PLANE_WORK), np.zeros((2, 3)))
 
 
 @structref.register
@@ -179,7 +207,8 @@ class WorkspaceRef(array.array):
         return True
 
     def __repr__(self):
-        return f"<WorkspaceRef of {len(self.arrays.radii)} ellipsoids, {len(self.arrays.pairs)} pairs>"
+        planes = f", {len(self.arrays.plane_pairs)} plane pairs" if len(self.arrays.plane_pairs) else ""
+        return f"<WorkspaceRef of {len(self.arrays.radii)} ellipsoids, {len(self.arrays.pairs)} pairs{planes}>"
 
     @classmethod
     def _numba_box_(cls, ty, mi):
@@ -406,6 +435,63 @@ def _sphere_entry(p0, p1, rmax, i, j):
                            (p0[j, 0], p0[j, 1], p0[j, 2]), (p1[j, 0], p1[j, 1], p1[j, 2]), rmax[j])
 
 
+@_inline
+def _plane_too_slow(p0, q0, p1, q1, rmax, plane_min_motion, e, k2):
+    """Policy, as :func:`_too_slow`: ellipsoid e of plane pair k2 moves by less than ``plane_min_motion[k2]``."""
+    return plane_min_motion[k2] > 0.0 and fl.relative_sweep(
+        (p0[e, 0], p0[e, 1], p0[e, 2]), (p1[e, 0], p1[e, 1], p1[e, 2]),
+        (q0[e, 0], q0[e, 1], q0[e, 2], q0[e, 3]), (q1[e, 0], q1[e, 1], q1[e, 2], q1[e, 3]), rmax[e],
+        (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), 0.0) < plane_min_motion[k2]
+
+
+@_inline
+def _plane_entry(p0, q0, p1, planes, radii, rmax, e, pl):
+    """(entry, below) of ellipsoid e against plane pl over the frame, by its bounding sphere.
+
+    The centre's signed distance s(t) = n . c(t) - offset is linear in t for
+    both motion models (the centre lerps), so the sphere of radius rmax, which
+    holds the ellipsoid for both, is clear of the half-space for the whole
+    frame when s > rmax at both ends.  Then entry = -1; otherwise entry is the
+    time at which the sphere reaches the plane, a lower bound of the
+    ellipsoid's first contact (0 when it reaches it at the start).  The
+    radius is inflated by a relative 1e-9 and by the rounding of s.
+    ``below``: certainly in contact at t = 0, the centre closer to the plane
+    than the support along n (``sqrt(sum r_k^2 (R0^T n)_k^2)``, less a
+    relative 1e-9 and the rounding of s): e.g. a body resting on a floor.
+    """
+    n0, n1, n2, d = planes[pl, 0], planes[pl, 1], planes[pl, 2], planes[pl, 3]
+    s0 = n0 * p0[e, 0] + n1 * p0[e, 1] + n2 * p0[e, 2] - d
+    s1 = n0 * p1[e, 0] + n1 * p1[e, 1] + n2 * p1[e, 2] - d
+    size = max(abs(n0 * p0[e, 0]) + abs(n1 * p0[e, 1]) + abs(n2 * p0[e, 2]),
+               abs(n0 * p1[e, 0]) + abs(n1 * p1[e, 1]) + abs(n2 * p1[e, 2])) + abs(d)
+    margin = 8.0 * fl.EPS * size
+    reach = rmax[e] * (1.0 + fl.SPHERE_INFLATE) + margin
+    if s0 > reach:
+        if s1 > reach:
+            return -1.0, False
+        return max(0.0, (s0 - reach) / (s0 - s1) * (1.0 - 1e-9)), False
+    w, x, y, z = q0[e, 0], q0[e, 1], q0[e, 2], q0[e, 3]
+    nq = w * w + x * x + y * y + z * z
+    b0 = ((w * w + x * x - y * y - z * z) * n0 + 2.0 * (x * y + w * z) * n1 + 2.0 * (x * z - w * y) * n2) / nq
+    b1 = (2.0 * (x * y - w * z) * n0 + (w * w - x * x + y * y - z * z) * n1 + 2.0 * (y * z + w * x) * n2) / nq
+    b2 = (2.0 * (x * z + w * y) * n0 + 2.0 * (y * z - w * x) * n1 + (w * w - x * x - y * y + z * z) * n2) / nq
+    h = np.sqrt((radii[e, 0] * b0) ** 2 + (radii[e, 1] * b1) ** 2 + (radii[e, 2] * b2) ** 2)
+    return 0.0, s0 < h * (1.0 - 1e-9) - margin
+
+
+@_inline
+def _plane_solve(affine, radii, p0, q0, p1, q1_raw, planes, plane_pairs, npairs, k, t_max, first_only,
+                 plane_work, touch):
+    """The exact plane kernel on plane pair k (its runs in ``plane_work``): (status at start, runs,
+    certified, bracket lo, bracket hi, number of runs)."""
+    e = plane_pairs[k - npairs, 0]
+    runs = plane_work[RUNS_AT:RUNS_AT + TWO_POSE_RUNS * RUN_FIELDS].reshape((TWO_POSE_RUNS, RUN_FIELDS))
+    status0, nruns, certified, lo, hi, _ = plane_pair_kernel(
+        affine, radii[e], p0[e], q0[e], p1[e], q1_raw[e], planes[plane_pairs[k - npairs, 1]], t_max, first_only,
+        plane_work, runs, touch)
+    return status0, runs, certified, lo, hi, nruns
+
+
 @_jit
 def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
     """One frame over all pairs of the workspace ``ws`` (a :class:`WorkspaceRef`); returns (best pair, rows, iv, owner).
@@ -419,6 +505,9 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
     possible first contact lies in it; lo = hi when the first contact itself
     is known and only later intervals are not), and it counts as a possible
     contact at ``times[k]`` (``times_hi`` is written for UNCERTAIN pairs only).
+    Plane pairs (the workspace's ``plane_pairs``) are checked after the
+    pairs, with the indices P + row, the same outcomes and counters, by
+    :func:`_plane_entry` and then :func:`mjccd.plane.plane_pair_kernel`.
     With ``all_pairs`` every pair not cleared by a filter is solved
     over [0, 1] and its intervals are written to ``iv`` (R, 2) (``owner`` (R,)
     gives the pair of each row; both are replaced by larger arrays when full,
@@ -439,13 +528,16 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
     q1, S, den, R0, R1 = field(ws, "q1_aligned"), field(ws, "S"), field(ws, "den"), field(ws, "R0"), field(ws, "R1")
     work, scratch, cand = field(ws, "work"), field(ws, "scratch"), field(ws, "cand")
     ready, aff_scratch = field(ws, "ready"), field(ws, "aff_scratch")
+    plane_work, plane_touch = field(ws, "plane_work"), field(ws, "plane_touch")
+    planes, plane_pairs, plane_min_motion = field(ws, "planes"), field(ws, "plane_pairs"), field(ws, "plane_min_motion")
     n = radii.shape[0]
     npairs = pairs.shape[0]
+    nplane = plane_pairs.shape[0]
     for i in range(n):
         ready[i] = False
     for c in range(N_COUNTERS):
         counters[c] = 0
-    counters[0] = npairs
+    counters[0] = npairs + nplane
     ncand = 0
     best = 2.0
     best_k = -1
@@ -496,6 +588,41 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
             counters[9] += 1
         if timing:
             ticks[k] = _ticks() - t_start
+    for k2 in range(nplane):  # plane pairs: the too-slow policy, the sphere against the plane
+        k = npairs + k2
+        if timing:
+            t_start = _ticks()
+        e = plane_pairs[k2, 0]
+        times[k] = -1.0
+        te = -1.0
+        if _plane_too_slow(p0, q0, p1, q1_raw, rmax, plane_min_motion, e, k2):
+            code = TOO_SLOW
+        else:
+            te, below = _plane_entry(p0, q0, p1, planes, radii, rmax, e, plane_pairs[k2, 1])
+            code = OVERLAP_T0 if below else (EXACT_FREE if te >= 0.0 else SPHERE)
+        outcome[k] = code
+        entry[k] = te
+        if code == OVERLAP_T0 and new_only:
+            counters[4] += 1
+            counters[6] += 1
+        elif code == OVERLAP_T0:
+            times[k] = 0.0
+            for m in range(3):
+                points[k, m] = 0.0
+                normals[k, m] = 0.0
+            if best > 0.0:
+                best, best_k = 0.0, k
+            cand[ncand] = k
+            ncand += 1
+        elif code == EXACT_FREE:
+            cand[ncand] = k
+            ncand += 1
+        elif code == SPHERE:
+            counters[1] += 1
+        else:
+            counters[9] += 1
+        if timing:
+            ticks[k] = _ticks() - t_start
     niv = 0
     if ncand > 1:
         sort_by_key(cand, ncand, entry)  # by sphere-entry time
@@ -503,6 +630,65 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
         k = cand[idx]
         if timing:
             t_start = _ticks()
+        if k >= npairs:  # a plane pair
+            if outcome[k] == OVERLAP_T0:
+                counters[4] += 1
+                counters[6] += 1
+                if not all_pairs:
+                    continue
+            elif not all_pairs and (best == 0.0 or entry[k] > best):
+                outcome[k] = PRUNED
+                counters[7] += 1
+                continue
+            status0, runs, certified, lo, hi, nruns = _plane_solve(
+                affine, radii, p0, q0, p1, q1_raw, planes, plane_pairs, npairs, k, 1.0 if all_pairs else min(best, 1.0),
+                not all_pairs, plane_work, plane_touch)
+            if outcome[k] == OVERLAP_T0:
+                if not certified:
+                    outcome[k] = UNCERTAIN
+                    times_hi[k] = 0.0
+                    counters[8] += 1
+            else:
+                counters[5] += 1
+                if new_only and status0 != 1:
+                    outcome[k] = OVERLAP_T0
+                    counters[4] += 1
+                    counters[6] += 1
+                elif nruns > 0 or not certified:
+                    # the first contact is known when its run is proven with a narrow entry bracket
+                    known = nruns > 0 and runs[0, 6] > 0.0 and max(runs[0, 0] - runs[0, 2],
+                                                                     runs[0, 3] - runs[0, 0]) <= TIME_TOL
+                    t = runs[0, 0] if known else lo
+                    if known:
+                        counters[6] += 1
+                    if certified:
+                        outcome[k] = EXACT_HIT
+                    else:
+                        outcome[k] = UNCERTAIN
+                        times_hi[k] = t if known else hi
+                        counters[8] += 1
+                    times[k] = t
+                    for m in range(3):
+                        points[k, m] = plane_touch[0, m]
+                        normals[k, m] = plane_touch[1, m]
+                    if t < best or (t == best and k < best_k):
+                        best, best_k = t, k
+            if all_pairs:
+                for r in range(nruns):
+                    if niv == iv.shape[0]:
+                        bigger = np.empty((2 * niv + 16, 2))
+                        bigger[:niv] = iv
+                        iv = bigger
+                        bigger_o = np.empty(2 * niv + 16, dtype=np.int64)
+                        bigger_o[:niv] = owner
+                        owner = bigger_o
+                    iv[niv, 0] = runs[r, 0]
+                    iv[niv, 1] = runs[r, 1]
+                    owner[niv] = k
+                    niv += 1
+            if timing:
+                ticks[k] += _ticks() - t_start
+            continue
         i = pairs[k, 0]
         j = pairs[k, 1]
         if outcome[k] == OVERLAP_T0:
@@ -598,8 +784,15 @@ def run_kernel(ws, positions, quats, iv, owner, new_only, timing, out):
 
 
 @_inline
-def _may_touch(affine, radii, rmax, pairs, min_motion, p0, q0, p1, q1):
+def _may_touch(affine, radii, rmax, pairs, min_motion, p0, q0, p1, q1, planes, plane_pairs, plane_min_motion):
     """The loop of :func:`may_touch_kernel` on (borrowed) arrays."""
+    for k2 in range(plane_pairs.shape[0]):
+        e = plane_pairs[k2, 0]
+        if _plane_too_slow(p0, q0, p1, q1, rmax, plane_min_motion, e, k2):
+            continue
+        te, below = _plane_entry(p0, q0, p1, planes, radii, rmax, e, plane_pairs[k2, 1])
+        if te >= 0.0 and not below:
+            return True
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -623,10 +816,13 @@ def may_touch_kernel(ws, p0, q0, p1, q1):
     frame (:func:`mjccd.filters.slabs_clear`); last, a pair certainly
     overlapping at t = 0 (the static test :func:`step_kernel` runs) is no new
     contact.  So :func:`step_kernel` with ``new_only`` finds no contact, not
-    even an uncertain one, when this returns False.  Allocates nothing.
+    even an uncertain one, when this returns False.  Plane pairs: the too-slow
+    policy, the sphere against the plane, and a body certainly in contact
+    with it at t = 0 (:func:`_plane_entry`; no new contact).  Allocates nothing.
     """
     return _may_touch(field(ws, "affine"), field(ws, "radii"), field(ws, "rmax"), field(ws, "pairs"),
-                      field(ws, "min_motion"), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1))
+                      field(ws, "min_motion"), _borrow(p0), _borrow(q0), _borrow(p1), _borrow(q1),
+                      field(ws, "planes"), field(ws, "plane_pairs"), field(ws, "plane_min_motion"))
 
 
 @_jit
@@ -640,7 +836,8 @@ def poses_may_touch(ws, poses_t0, poses_t1):
     if not (_split_poses(_borrow(poses_t0), p0, q0) and _split_poses(_borrow(poses_t1), p1, q1)):
         return True
     return _may_touch(field(ws, "affine"), field(ws, "radii"), field(ws, "rmax"), field(ws, "pairs"),
-                      field(ws, "min_motion"), p0, q0, p1, q1)
+                      field(ws, "min_motion"), p0, q0, p1, q1, field(ws, "planes"), field(ws, "plane_pairs"),
+                      field(ws, "plane_min_motion"))
 
 
 # ---------------------------------------------------------------- Python layer
@@ -665,6 +862,30 @@ class PairContact:
 
     pair: int
     bodies: tuple
+    time: float
+    point: object
+    normal: object
+    intervals: tuple = ()
+    certainty: str = "certified"
+    bracket: tuple = None
+
+
+@dataclass(frozen=True)
+class PlaneContact:
+    """Contact of an ellipsoid with a plane (a plane pair of the scene) in a frame.
+
+    ``pair`` is the scene's pair index, ``len(scene.pairs) + row`` for row
+    ``row`` of :attr:`Scene.plane_pairs`; ``ellipsoid`` and ``plane`` index
+    the scene's ellipsoids and :attr:`Scene.planes`.  The other fields are
+    those of :class:`PairContact`, with the body touching or entering the
+    half-space below the plane: ``point`` is the ellipsoid's point deepest
+    along -n at the first contact and ``normal`` = -n (outward from the
+    ellipsoid, as ``PairContact.normal`` is outward from ``bodies[0]``).
+    """
+
+    pair: int
+    ellipsoid: int
+    plane: int
     time: float
     point: object
     normal: object
@@ -733,9 +954,9 @@ class RunResult:
     ``time[f]`` is the low end of its bracket and point and normal are zero;
     :meth:`Scene.step` gives the bracket); ``counters`` (F, N_COUNTERS) in the order of
     :class:`FrameCounters`; ``outcomes``
-    (F, P) the outcome code of every pair (see ``OUTCOME_NAMES``); ``ticks``
-    (F, P) CPU cycles per pair and ``frame_ticks`` (F,) per frame when timing
-    was asked for (zero otherwise).
+    (F, P + Q) the outcome code of every pair, plane pairs last (see
+    ``OUTCOME_NAMES``); ``ticks`` (F, P + Q) CPU cycles per pair and
+    ``frame_ticks`` (F,) per frame when timing was asked for (zero otherwise).
     """
 
     time: np.ndarray
@@ -756,7 +977,8 @@ _RunArrays = collections.namedtuple("_RunArrays", [f.name for f in fields(RunRes
 class FirstContact(NamedTuple):
     """The answer of :meth:`Scene.first_contact`: the fields of :class:`PairContact` that a first contact needs.
 
-    ``pair`` indexes :attr:`Scene.pairs`; ``time`` in [0, 1]; ``point`` and
+    ``pair`` indexes :attr:`Scene.pairs`, or, from ``len(Scene.pairs)`` on,
+    :attr:`Scene.plane_pairs` (see :meth:`Scene.plane_pair`); ``time`` in [0, 1]; ``point`` and
     ``normal`` (3,) copies, None exactly when :class:`PairContact` has None;
     ``bracket`` (lo, hi) when the answer is uncertain (then ``time`` is lo),
     else None.
@@ -785,25 +1007,68 @@ def pair_contact(pairs, k, outcome, times, times_hi, points, normals, intervals=
                        "certified" if bracket is None else "uncertain", bracket)
 
 
-def frame_result(pairs, best_k, outcome, times, times_hi, points, normals, counters, rows=None):
+def plane_contact(pairs, plane_pairs, k, outcome, times, times_hi, points, normals, intervals=()):
+    """The :class:`PlaneContact` of pair k (>= len(pairs), a plane pair) from the per-pair arrays."""
+    k, t, point, normal, bracket = first_of(k, outcome, times, times_hi, points, normals)
+    row = plane_pairs[k - len(pairs)]
+    return PlaneContact(k, int(row[0]), int(row[1]), t, point, normal, intervals,
+                        "certified" if bracket is None else "uncertain", bracket)
+
+
+def _contact_of(pairs, plane_pairs, k, outcome, times, times_hi, points, normals, intervals=()):
+    """:func:`pair_contact` or, for a plane pair, :func:`plane_contact`."""
+    if plane_pairs is None or k < len(pairs):
+        return pair_contact(pairs, k, outcome, times, times_hi, points, normals, intervals)
+    return plane_contact(pairs, plane_pairs, k, outcome, times, times_hi, points, normals, intervals)
+
+
+def frame_result(pairs, best_k, outcome, times, times_hi, points, normals, counters, rows=None, plane_pairs=None):
     """The :class:`FrameResult` of one :func:`step_kernel` call (a pure function of its arrays).
 
     ``best_k`` is the kernel's first pair (-1: none); ``rows`` (all pairs
     asked) the intervals of each pair as ``(iv, owner)``, the kernel's first
-    ``rows`` rows; None when only the first contact was sought.
+    ``rows`` rows; None when only the first contact was sought.  Pairs from
+    ``len(pairs)`` on are rows of ``plane_pairs`` and give :class:`PlaneContact`.
     """
-    first = None if best_k < 0 else pair_contact(pairs, best_k, outcome, times, times_hi, points, normals)
+    first = None if best_k < 0 else _contact_of(pairs, plane_pairs, best_k, outcome, times, times_hi, points, normals)
     contacts = ()
     if rows is not None:
         by_pair = {}
         for (a, b), k in zip(*rows):
             by_pair.setdefault(int(k), []).append((float(a), float(b)))
-        contacts = tuple(pair_contact(pairs, k, outcome, times, times_hi, points, normals,
-                                      tuple(by_pair.get(k, ())))
+        contacts = tuple(_contact_of(pairs, plane_pairs, k, outcome, times, times_hi, points, normals,
+                                     tuple(by_pair.get(k, ())))
                          for k in np.nonzero(times >= 0.0)[0].tolist())
     uncertain = any(c is not None and c.certainty == "uncertain" for c in (first,) + contacts)
     return FrameResult(first, contacts, FrameCounters.from_array(counters),
                        "uncertain" if uncertain else "certified")
+
+
+def _plane_arguments(planes, plane_pairs, n):
+    """Validated (K, 4) plane rows and (Q, 2) int64 plane pairs (both None when there are no planes)."""
+    if planes is None or (not isinstance(planes, Plane) and len(planes) == 0):
+        if plane_pairs is not None and len(np.asarray(plane_pairs).reshape(-1)):
+            raise InputError("plane_pairs: given without planes")
+        return None, None
+    rows = plane_rows(planes, "planes")
+    k = len(rows)
+    if plane_pairs is None:
+        return rows, np.stack([np.repeat(np.arange(n), k), np.tile(np.arange(k), n)], axis=1).astype(np.int64)
+    try:
+        arr = np.asarray(plane_pairs)
+    except ValueError:  # ragged rows
+        raise InputError("plane_pairs: expected Q rows (ellipsoid index, plane index)") from None
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise InputError(f"plane_pairs: expected shape Qx2, got {arr.shape}")
+    if arr.size and (arr.dtype.kind not in "iuf" or not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr))):
+        raise InputError(f"plane_pairs: expected integer (ellipsoid, plane) indices, got {arr[0].tolist()!r}")
+    arr = arr.astype(np.int64)
+    for col, count, what in ((0, n, "ellipsoids"), (1, k, "planes")):
+        bad = np.flatnonzero((arr[:, col] < 0) | (arr[:, col] >= count))
+        if len(bad):
+            raise InputError(f"plane_pairs[{bad[0]}]: {what[:-1]} index out of range for {count} {what}, "
+                             f"got {arr[bad[0]].tolist()}")
+    return rows, arr
 
 
 def all_pairs(n):
@@ -835,9 +1100,17 @@ class Scene:
         motion: "rigid" (centre and quaternion lerp) or "affine" (centre and
             shape matrix lerp, thesis §5.2).
         plane_cache: keep each pair's separating plane for the next frame.
+        planes: static planes, each the solid half-space below it (MuJoCo's
+            ``plane`` geoms): a sequence of :class:`mjccd.plane.Plane`, or (K, 4)
+            rows ``[nx, ny, nz, offset]`` for ``n . x = offset`` (normals of any
+            length, normalised here).  None or empty: no planes.
+        plane_pairs: (Q, 2) rows (ellipsoid index, plane index) to check; default
+            every ellipsoid against every plane.  Their pair indices are
+            ``len(pairs) + row`` (see :meth:`plane_pair`), their contacts
+            :class:`PlaneContact`.
     """
 
-    def __init__(self, radii, *, pairs=None, motion="rigid", plane_cache=True):
+    def __init__(self, radii, *, pairs=None, motion="rigid", plane_cache=True, planes=None, plane_pairs=None):
         self.radii = _validate.radii_array(radii, "radii")
         n = len(self.radii)
         if not isinstance(motion, str) or motion not in ("rigid", "affine"):
@@ -865,10 +1138,63 @@ class Scene:
         if len(same):
             raise InputError(f"pairs[{same[0]}]: an ellipsoid cannot be paired with itself, "
                              f"got {arr[same[0]].tolist()}")
-        self._arrays = new_workspace(self.radii, arr, motion == "affine", plane_cache)
+        rows, links = _plane_arguments(planes, plane_pairs, n)
+        self._arrays = new_workspace(self.radii, arr, motion == "affine", plane_cache, rows, links)
         self._ref = workspace_ref(self._arrays)
         self.radii, self.pairs, self.plane_cache = self._arrays.radii, self._arrays.pairs, self._arrays.plane_cache
         self._iv, self._owner = np.empty((0, 2)), np.empty(0, dtype=np.int64)  # intervals (all pairs), grown as needed
+        self._plane_rows = self._arrays.plane_pairs if len(self._arrays.plane_pairs) else None  # for frame_result
+
+    @property
+    def planes(self):
+        """(K, 4) read-only: the planes ``[nx, ny, nz, offset]`` (unit normals), each the half-space n . x <= offset."""
+        view = self._arrays.planes.view()
+        view.flags.writeable = False
+        return view
+
+    @property
+    def plane_pairs(self):
+        """(Q, 2) read-only: the plane pairs (ellipsoid index, plane index); pair index ``len(pairs) + row``."""
+        view = self._arrays.plane_pairs.view()
+        view.flags.writeable = False
+        return view
+
+    def plane_pair(self, k):
+        """(ellipsoid, plane) of pair index k when it is a plane pair, None when it is a pair of :attr:`pairs`."""
+        k = int(k)
+        npairs = len(self._arrays.pairs)
+        if not 0 <= k < npairs + len(self._arrays.plane_pairs):
+            raise InputError(f"k: pair index out of range for {npairs} pairs and "
+                             f"{len(self._arrays.plane_pairs)} plane pairs, got {k}")
+        if k < npairs:
+            return None
+        row = self._arrays.plane_pairs[k - npairs]
+        return int(row[0]), int(row[1])
+
+    @property
+    def plane_min_motion(self):
+        """(Q,) read-only: per plane pair, the motion over a frame below which it is left out (see
+        :meth:`set_plane_min_motion`)."""
+        view = self._arrays.plane_min_motion.view()
+        view.flags.writeable = False
+        return view
+
+    def set_plane_min_motion(self, values):
+        """Leave out the plane pairs whose ellipsoid moves too little to matter: :meth:`set_min_motion` for planes.
+
+        Plane pair k is not checked in a frame when how far any point of its
+        ellipsoid moves (the centre's displacement plus the chord its largest
+        semi-axis sweeps, :func:`mjccd.filters.relative_sweep` against a fixed
+        point) stays below ``values[k]``; outcome ``too_slow``.
+
+        Args:
+            values: (Q,) finite numbers >= 0, one per plane pair (0: always checked).
+        """
+        arr = _validate.array(values, (len(self._arrays.plane_pairs),), "plane_min_motion")
+        bad = np.flatnonzero(arr < 0.0)
+        if len(bad):
+            raise InputError(f"plane_min_motion[{bad[0]}]: expected a distance >= 0, got {float(arr[bad[0]])!r}")
+        self._arrays.plane_min_motion[:] = arr
 
     @property
     def workspace(self):
@@ -957,7 +1283,7 @@ class Scene:
         best_k, niv = self._frame(poses_t0, poses_t1, all_pairs, bool(new_contacts_only))
         a = self._arrays
         return frame_result(a.pairs, best_k, a.outcome, a.times, a.times_hi, a.points, a.normals, a.counters,
-                            (self._iv[:niv], self._owner[:niv]) if all_pairs else None)
+                            (self._iv[:niv], self._owner[:niv]) if all_pairs else None, self._plane_rows)
 
     def first_contact(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """The first contact of one frame, without the result objects of :meth:`step`: None or a :class:`FirstContact`.
@@ -1010,7 +1336,7 @@ class Scene:
         positions = np.ascontiguousarray(arr[:, :, :3])
         quats = np.ascontiguousarray(quats / norms[:, :, None])
         nf = arr.shape[0] - 1
-        npairs = len(self.pairs)
+        npairs = len(self.pairs) + len(self._arrays.plane_pairs)
         out = _RunArrays(np.empty(nf), np.empty(nf, dtype=np.int64), np.zeros((nf, 3)), np.zeros((nf, 3)),
                          np.empty((nf, N_COUNTERS), dtype=np.int64), np.empty((nf, npairs), dtype=np.int8),
                          np.zeros((nf, npairs), dtype=np.int64), np.zeros(nf, dtype=np.int64))

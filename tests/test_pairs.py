@@ -409,7 +409,7 @@ def test_a_dm_control_wrapper_without_pairs_adds_the_no_contact_entries():
     from mjccd.dm_control import OBSERVATION_KEYS, CCDWrapper
 
     with pytest.warns(CoverageWarning, match="^no pair to check: ") as said:
-        env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}))
+        env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False)
     assert len(said) == 1 and len(env.monitor.pairs) == 0
     spec = env.observation_spec()
     env.reset()
@@ -472,7 +472,7 @@ def test_a_gymnasium_wrapper_without_pairs_adds_the_no_contact_entries():
     except Exception as exc:  # gymnasium without its MuJoCo environments
         pytest.skip(f"InvertedPendulum-v5: {exc}")
     with pytest.warns(CoverageWarning, match="^no pair to check: "):
-        wrapped = CCDGymWrapper(env)
+        wrapped = CCDGymWrapper(env, planes=False)
     wrapped.reset(seed=0)
     info = wrapped.step(np.zeros(1))[4]["ccd"]
     assert np.isinf(info["contact_time"]) and tuple(info["contact_pair"]) == (-1, -1)

@@ -25,7 +25,8 @@ from mjccd import chain_bounds as cb
 from mjccd.ccd import first_contact
 from mjccd.errors import InputError, InputTypeError
 from mjccd.motion import Affine, Rigid
-from mjccd.quadric import Ellipsoid, static_status_code
+from mjccd.plane import Plane, plane_first_contact
+from mjccd.quadric import Ellipsoid, quat_to_matrix, static_status_code
 from mjccd.scene import FrameCounters, Scene
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
@@ -33,6 +34,14 @@ from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state
 from mjccd.mujoco.warnings import mujoco_warnings
 
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
+
+
+def plane_clearance(radii, pose, plane):
+    """How far an ellipsoid at ``pose`` ([x, y, z, qw, qx, qy, qz]) lies above ``plane`` ([n, offset]): the
+    centre's height less the ellipsoid's support along n (negative: it reaches below the plane)."""
+    normal = plane[:3]
+    local = quat_to_matrix(pose[3:]).T @ normal
+    return float(normal @ pose[:3] - plane[3] - np.sqrt(np.sum((radii * local) ** 2)))
 COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))  # the counters every check reports
 
 
@@ -45,7 +54,8 @@ class StepContact:
         fraction: the same instant as a fraction in [0, 1] of the step.
         bodies: the two body names (``#id`` for unnamed bodies).
         body_ids: the two MuJoCo body ids.
-        ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`.
+        ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`; for a contact with a
+            plane, the ellipsoid's index and -1.
         point: (3,) world contact point, None when the pair was not separate at the step start.
         normal: (3,) unit world normal pointing out of ``bodies[0]``, None likewise.
         status_at_start: "separate", "touching" or "overlapping" at the step start.
@@ -54,7 +64,10 @@ class StepContact:
             and ``fraction`` are the start of that bracket (never read it as "no contact").
         bracket: (lo, hi) simulation times in seconds holding every possible first contact
             when uncertain (lo == hi when the first contact itself is known); None when certified.
-        pair: the index of the pair in the checker's pair list (``pairs[pair]`` is ``ellipsoids``).
+        pair: the index of the pair in the checker's pair list (``pairs[pair]`` is ``ellipsoids``); for a
+            plane, ``len(pairs)`` plus its row in ``plane_pairs``.
+        geom: the plane geom of a contact with a plane (``bodies[1]`` is its body; the normal points
+            out of the ellipsoid, into the plane); -1 for a pair of ellipsoids.
     """
 
     time: float
@@ -68,6 +81,7 @@ class StepContact:
     certainty: str = "certified"
     bracket: tuple = None
     pair: int = -1
+    geom: int = -1
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,11 +176,13 @@ class ModelAdapter:
         ellipsoids: :class:`EllipsoidSet` (its bodies are looked up in the model).
         pairs: (P, 2) ellipsoid index pairs (:func:`mjccd.mujoco.pairs.select_pairs` makes them).
         motion: "rigid", "affine" or "chain".
+        plane_pairs: (Q, 2) rows (ellipsoid index, plane geom id) of static planes
+            (:func:`mjccd.mujoco.pairs.plane_pairs` makes them); None: none.
         chain_filters: with the chain motion, decide pairs with the chain filters first (False:
             every pair goes to the exact solver; the filters never change an answer).
     """
 
-    def __init__(self, model, ellipsoids, pairs, motion="rigid", *, chain_filters=True):
+    def __init__(self, model, ellipsoids, pairs, motion="rigid", *, chain_filters=True, plane_pairs=None):
         if not isinstance(ellipsoids, EllipsoidSet):
             raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
         if not isinstance(motion, str) or motion not in MOTIONS:
@@ -177,13 +193,40 @@ class ModelAdapter:
         self.labels = [body_label(model, b) for b in range(model.nbody)]
         self.kinematics = Kinematics(model)
         self.radii = ellipsoids.radii
-        self.scene = Scene(self.radii, pairs=self.pairs, motion=motion) \
-            if motion != "chain" and len(self.pairs) else None
+        self.plane_pairs, self.planes, plane_rows = self._static_planes(plane_pairs)
+        self.scene = Scene(self.radii, pairs=self.pairs, motion=motion, planes=self.planes if len(plane_rows) else None,
+                           plane_pairs=plane_rows if len(plane_rows) else None) \
+            if motion != "chain" and (len(self.pairs) or len(plane_rows)) else None
+        self._plane_rows = plane_rows
         self.chain_filter = cb.ChainFilter(self.chains.program, self.radii, self.pairs) \
             if motion == "chain" and chain_filters and len(self.pairs) else None
         self._cached = None  # (state, poses) of the last end state
         # the scene's pair outcome counters of its last check (its own buffer, read after each check)
         self._counters = self.scene.workspace.arrays.counters if self.scene is not None else None
+
+    def _static_planes(self, plane_pairs):
+        """``(plane_pairs (Q, 2) (ellipsoid, geom), planes (K, 4) [n, offset], rows (Q, 2) (ellipsoid, plane))``
+        of static plane geoms: each plane's world normal (its geom's z axis) and offset, from the model's
+        reference pose (a static body never moves)."""
+        m = self.model
+        rows = np.zeros((0, 2), dtype=np.int64) if plane_pairs is None else np.asarray(plane_pairs, dtype=np.int64)
+        if rows.ndim != 2 or rows.shape[1] != 2:
+            raise InputError(f"plane_pairs: expected Q rows (ellipsoid index, plane geom id), got shape {rows.shape}")
+        for k, (e, g) in enumerate(rows.tolist()):
+            if not (0 <= e < len(self.ellipsoids) and 0 <= g < m.ngeom
+                    and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE and m.body_weldid[m.geom_bodyid[g]] == 0):
+                raise InputError(f"plane_pairs[{k}]: expected (ellipsoid index, id of a plane geom of a static "
+                                 f"body), got {(e, g)}")
+        geoms = sorted(set(rows[:, 1].tolist()))
+        d = mujoco.MjData(m)
+        mujoco.mj_kinematics(m, d)
+        planes = np.empty((len(geoms), 4))
+        for k, g in enumerate(geoms):
+            normal = d.geom_xmat[g].reshape(3, 3)[:, 2]
+            planes[k] = (*normal, normal @ d.geom_xpos[g])
+        index = {g: k for k, g in enumerate(geoms)}
+        scene_rows = np.array([(e, index[g]) for e, g in rows.tolist()], dtype=np.int64).reshape(-1, 2)
+        return rows, planes, scene_rows
 
     @cached_property
     def chains(self):
@@ -244,7 +287,7 @@ class ModelAdapter:
         ``new_only``: pairs touching or overlapping at the start are left out; ``names``: the two
         states as the caller knows them, for errors.
         """
-        if len(self.pairs) == 0:
+        if len(self.pairs) == 0 and len(self._plane_rows) == 0:
             return StepReport(None, (), 0, 0, 0, False, dict.fromkeys(COUNTER_NAMES, 0))
         if poses is None:
             poses = (self.poses(s0), self.kinematics.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions,
@@ -262,6 +305,8 @@ class ModelAdapter:
         knows it; else separate when there is a point or an uncertain contact after the start, and the
         static status of the start poses otherwise.
         """
+        if k >= len(self.pairs):
+            return self._plane_contact(t0, t1, k, fraction, point, normal, poses0, bracket, status)
         i, j = int(self.pairs[k, 0]), int(self.pairs[k, 1])
         if status is None:
             if point is None and (bracket is None or bracket[1] == 0.0):
@@ -279,6 +324,25 @@ class ModelAdapter:
                            None if point is None else np.array(point, float),
                            None if normal is None else np.array(normal, float), status,
                            "certified" if bracket is None else "uncertain", seconds, int(k))
+
+    def _plane_contact(self, t0, t1, k, fraction, point, normal, poses0, bracket, status):
+        """:meth:`contact` of plane pair ``k`` (``len(pairs)`` + its row in ``plane_pairs``)."""
+        row = k - len(self.pairs)
+        i, g = int(self.plane_pairs[row, 0]), int(self.plane_pairs[row, 1])
+        if status is None:
+            if point is None and (bracket is None or bracket[1] == 0.0):
+                plane = self.planes[int(self._plane_rows[row, 1])]
+                status = "touching" if plane_clearance(self.radii[i], poses0[i], plane) >= 0.0 else "overlapping"
+            else:
+                status = "separate"
+        a, b = int(self.body_ids[i]), int(self.model.geom_bodyid[g])
+        seconds = None if bracket is None else (float(self._seconds(t0, t1, bracket[0])),
+                                                float(self._seconds(t0, t1, bracket[1])))
+        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
+                           (self.labels[a], self.labels[b]), (a, b), (i, -1),
+                           None if point is None else np.array(point, float),
+                           None if normal is None else np.array(normal, float), status,
+                           "certified" if bracket is None else "uncertain", seconds, int(k), g)
 
     def _seconds(self, t0, t1, fraction):
         """Simulation time at ``fraction`` of a step from ``t0`` to ``t1`` (either None: unknown)."""
@@ -394,7 +458,33 @@ class ModelAdapter:
             contacts.append(c)
             if not all_pairs:
                 t_max = min(t_max, c.fraction)
+        npairs = len(self.pairs)
+        counters["pairs"] += len(self._plane_rows)
+        for row, (i, plane) in enumerate(self._plane_rows.tolist()):  # planes: the exact solver, no filter
+            if t_max == 0.0:
+                counters["pruned"] += 1
+                continue
+            if i not in motions:
+                motions[i] = chains.motion(i, v0, v1)
+            counters["solved_exactly"] += 1
+            hit = plane_first_contact(self._shapes[i], motions[i], Plane(self.planes[plane, :3], self.planes[plane, 3]),
+                                      t_max=1.0 if all_pairs else t_max)
+            if hit is None:
+                continue
+            certain = hit.certainty == "certified"
+            counters["uncertain"] += not certain
+            counters["colliding"] += 1
+            if hit.status_at_start != "separate":
+                counters["overlapping_t0"] += 1
+                if new_only:
+                    continue
+            c = self.contact(s0.time, s1.time, npairs + row, hit.time, hit.point, hit.normal, p0,
+                             None if certain else hit.bracket,
+                             hit.status_at_start if hit.status_at_start != "separate" or not certain else None)
+            contacts.append(c)
+            if not all_pairs:
+                t_max = min(t_max, c.fraction)
         contacts.sort(key=lambda c: c.fraction)
         first = contacts[0] if contacts else None
-        return StepReport(first, tuple(contacts) if all_pairs else (), len(self.pairs),
+        return StepReport(first, tuple(contacts) if all_pairs else (), counters["pairs"],
                           counters["solved_exactly"], counters["uncertain"], False, counters)

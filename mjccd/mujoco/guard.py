@@ -259,7 +259,8 @@ class GuardedStepper:
         contact_step: length of the step taken right after a clamp, as a fraction of the timestep (at
             least half the model's shortest contact time constant, :func:`shortest_contact_time`).
         max_penetration: how deep one step may carry a pair into each other before the guard steps in,
-            as a fraction of the pair's thickness (the sum of the two smallest semi-axes).  A pair whose
+            as a fraction of the pair's thickness (the sum of the two smallest semi-axes; against a plane,
+            the ellipsoid's smallest semi-axis).  A pair whose
             relative motion within a step (any point, centre travel plus rotation sweep) stays below
             that depth cannot pass through, so it is left to MuJoCo's own contacts, as Bullet leaves
             bodies below its CCD motion threshold.  0 guards every new contact.  Rigid and affine
@@ -302,6 +303,9 @@ class GuardedStepper:
             thin = np.asarray(ellipsoids.radii, dtype=float).min(axis=1)
             pairs = self.monitor.pairs
             self.monitor.scene.set_min_motion(self.max_penetration * (thin[pairs[:, 0]] + thin[pairs[:, 1]]))
+            on_planes = self.monitor.plane_pairs  # a plane is as thick as the half-space: the ellipsoid's own
+            if len(on_planes):
+                self.monitor.scene.set_plane_min_motion(self.max_penetration * thin[on_planes[:, 0]])
             # the first step's setup, done here: the current poses recorded, so the first step costs what
             # every other step costs
             self._fast.begin(data)

@@ -22,16 +22,16 @@ class CCDGymWrapper(gymnasium.Wrapper):
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True, per="body"):
+                 all_pairs=False, report_overlapping=True, per="body", planes=True):
         super().__init__(env)
         base, model, data = model_and_data(env)
         if not callable(getattr(base, "do_simulation", None)):
             raise InputTypeError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
         self.ellipsoids, self.monitor, self._recorder = substep_monitor(
             model, data, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact, all_pairs=all_pairs,
-            report_overlapping=report_overlapping)
+            report_overlapping=report_overlapping, planes=planes)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
-        self._idle = len(self.monitor.pairs) == 0  # no pair to check (select_pairs warned why)
+        self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
 
     def step(self, action):
         if self._idle:  # nothing to check: the environment's own step, with the no-contact entries

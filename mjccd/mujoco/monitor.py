@@ -1,5 +1,6 @@
 """CCDMonitor: the exact first contact of every MuJoCo step between fitted ellipsoids."""
 import math
+import warnings
 from types import MappingProxyType
 
 import mujoco
@@ -10,7 +11,8 @@ from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
                                   StepContact, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
-from mjccd.mujoco.pairs import select_pairs
+from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
+from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import MOTIONS, as_state, capture, ellipsoid_poses_into, poses_then_may_touch
 
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
@@ -91,10 +93,15 @@ class CCDMonitor:
         report_overlapping: when False, pairs already touching or overlapping at
             the start of a step are left out (only new contacts are reported;
             the earliest-contact bound still applies to the new ones).
+        planes: also check the ellipsoids against the static ``plane`` geoms (floors, walls: infinite, the
+            half-space below each) that MuJoCo's rules collide with their geoms
+            (:func:`~mjccd.mujoco.pairs.plane_pairs`); a contact with a plane has ``geom`` set.  Height
+            fields, SDF geoms and planes on mocap bodies are not checked yet: each is warned about once
+            (:class:`~mjccd.mujoco.warnings.CoverageWarning`, naming the geom).
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True):
+                 all_pairs=False, report_overlapping=True, planes=True):
         check_simulation(model, data)
         if not isinstance(ellipsoids, EllipsoidSet):
             raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
@@ -103,13 +110,22 @@ class CCDMonitor:
         if on_contact is not None and not callable(on_contact):
             raise InputTypeError(f"on_contact: expected a callable or None, got {type(on_contact).__name__}")
         all_pairs, report_overlapping = flag(all_pairs, "all_pairs"), flag(report_overlapping, "report_overlapping")
+        planes = flag(planes, "planes")
         self.model, self.data, self.ellipsoids = model, data, ellipsoids
         self.motion, self.on_contact, self.all_pairs = motion, on_contact, all_pairs
         self.report_overlapping = report_overlapping
-        self.adapter = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
+        chosen, why = pairs_with_reason(model, ellipsoids, pairs)
+        on_planes = plane_pairs(model, ellipsoids) if planes else None
+        if planes:
+            warn_uncovered(model, ellipsoids, stacklevel=2)
+        if why is not None and (on_planes is None or len(on_planes) == 0):
+            warnings.warn(why, CoverageWarning, stacklevel=2)
+        self.adapter = ModelAdapter(model, ellipsoids, chosen, motion, plane_pairs=on_planes)
         self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
+        self.plane_pairs = self.adapter.plane_pairs
         self.last_report = None
-        self._idle = len(self.pairs) == 0  # no pair: a step is the step alone (see advance_checked)
+        # no pair and no plane: a step is the step alone (see advance_checked)
+        self._idle = len(self.pairs) == 0 and len(self.plane_pairs) == 0
         self._poses = None  # the StepCheck that keeps the poses of advance_checked's steps (scene motions)
 
     @property

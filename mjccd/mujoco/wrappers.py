@@ -227,11 +227,11 @@ class CCDWrapper(DelegatingEnvironment):
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
         ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
-        pairs, motion, on_contact, all_pairs, report_overlapping: as in :class:`~mjccd.mujoco.CCDMonitor`.
+        pairs, motion, on_contact, all_pairs, report_overlapping, planes: as in :class:`~mjccd.mujoco.CCDMonitor`.
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True, per="body"):
+                 all_pairs=False, report_overlapping=True, per="body", planes=True):
         super().__init__(env)
         if not isinstance(env.observation_spec(), Mapping):
             raise InputError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
@@ -239,9 +239,9 @@ class CCDWrapper(DelegatingEnvironment):
         model = physics.model.ptr
         self.ellipsoids, self.monitor, self._recorder = substep_monitor(
             model, physics.data.ptr, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact,
-            all_pairs=all_pairs, report_overlapping=report_overlapping)
+            all_pairs=all_pairs, report_overlapping=report_overlapping, planes=planes)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
-        self._idle = len(self.monitor.pairs) == 0  # no pair to check (select_pairs warned why)
+        self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
 
     def _with_ccd(self, timestep, recorded):
         obs = collections.OrderedDict(timestep.observation)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from mjccd import replay
-from mjccd.mujoco import CCDMonitor, ModelAdapter, State, geom_ellipsoids
+from mjccd.mujoco import CCDMonitor, GuardedStepper, ModelAdapter, State, fit_model, geom_ellipsoids
 from mjccd.mujoco.monitor import StepCheck
 from mjccd.testing import trajectory_contacts
 
@@ -170,3 +170,54 @@ def test_monitor_guard_replay_and_testing_give_the_same_contacts(scene):
     found = trajectory_contacts(model, qpos, pairs="characters", ellipsoids=ellipsoids, times=times)
     assert [(_key(c), c.time, c.status_at_start) for c in found] == \
         [(_key(c), c.time, c.status_at_start) for c in firsts if c is not None]
+
+
+FLOOR = """
+<mujoco>
+  <compiler angle="radian"/>
+  <option gravity="0 0 0" timestep="0.01"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1" pos="0 0 -0.25" euler="0.3 0 0"/>
+    <body name="ball" pos="0 0 1"><freejoint/><geom type="sphere" size="0.1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("motion", ["rigid", "affine", "chain"])
+def test_a_ball_falling_onto_a_tilted_floor_touches_at_the_closed_form_time(motion):
+    """The floor is a plane geom (tilted 0.3 rad about x, 0.25 m down): the monitor checks it by MuJoCo's
+    rules, and the contact comes at the time the ball's lowest point along the floor's normal reaches it."""
+    model = mujoco.MjModel.from_xml_string(FLOOR)
+    data = mujoco.MjData(model)
+    data.qvel[2] = -10.0
+    mujoco.mj_forward(model, data)
+    normal = np.array([0.0, -np.sin(0.3), np.cos(0.3)])  # the floor's z axis in the world
+    height = normal @ (np.array([0.0, 0.0, 1.0]) - np.array([0.0, 0.0, -0.25])) - 0.1
+    t_star = height / (10.0 * normal[2])
+    monitor = CCDMonitor(model, data, fit_model(model), motion=motion)
+    assert len(monitor.pairs) == 0 and monitor.plane_pairs.tolist() == [[0, 0]]
+    contact = None
+    while contact is None and data.time < 0.5:
+        contact = monitor.step()
+    assert contact is not None and contact.status_at_start == "separate"
+    assert abs(contact.time - t_star) <= 1e-9 * model.opt.timestep
+    assert contact.bodies == ("ball", "world") and contact.geom == 0 and contact.ellipsoids == (0, -1)
+    assert np.allclose(contact.normal, -normal, atol=1e-9)
+    centre = np.array([0.0, 0.0, 1.0 - 10.0 * t_star])
+    assert np.allclose(contact.point, centre - 0.1 * normal, atol=1e-9)
+
+
+def test_planes_can_be_left_out_and_the_guard_lands_a_fast_ball_on_the_floor():
+    model = mujoco.MjModel.from_xml_string(FLOOR)
+    data = mujoco.MjData(model)
+    assert len(CCDMonitor(model, data, fit_model(model), planes=False).plane_pairs) == 0
+
+    data.qvel[2] = -200.0  # 2 m per step: plain MuJoCo would start the contact 1 m below the floor
+    mujoco.mj_forward(model, data)
+    guard = GuardedStepper(model, data, fit_model(model))
+    for _ in range(10):
+        guard.step()
+    assert guard.clamps_total >= 1
+    normal = np.array([0.0, -np.sin(0.3), np.cos(0.3)])
+    assert normal @ (data.qpos[:3] - np.array([0.0, 0.0, -0.25])) > 0.0  # the centre stayed above the floor

@@ -221,3 +221,19 @@ def test_planes_can_be_left_out_and_the_guard_lands_a_fast_ball_on_the_floor():
     assert guard.clamps_total >= 1
     normal = np.array([0.0, -np.sin(0.3), np.cos(0.3)])
     assert normal @ (data.qpos[:3] - np.array([0.0, 0.0, -0.25])) > 0.0  # the centre stayed above the floor
+
+
+def test_plane_clearance_is_the_centre_height_less_the_support():
+    from mjccd.mujoco.adapter import plane_clearance
+    from mjccd.quadric import quat_to_matrix
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        pose, radii = np.r_[rng.normal(size=3), q], rng.uniform(0.1, 1.0, 3)
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        support = np.sqrt(np.sum((radii * (quat_to_matrix(q).T @ normal)) ** 2))
+        assert plane_clearance(radii, pose, np.r_[normal, 0.3]) == pytest.approx(normal @ pose[:3] - 0.3 - support,
+                                                                                  abs=1e-12)

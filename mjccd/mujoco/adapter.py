@@ -13,6 +13,7 @@ checker of the motion model:
 
 Answers come back as :class:`StepReport` and :class:`StepContact` in simulation time and body names.
 """
+import math
 import pathlib
 import sys
 from dataclasses import dataclass, fields
@@ -26,7 +27,7 @@ from mjccd.ccd import first_contact
 from mjccd.errors import InputError, InputTypeError
 from mjccd.motion import Affine, Rigid
 from mjccd.plane import Plane, plane_first_contact
-from mjccd.quadric import Ellipsoid, quat_to_matrix, static_status_code
+from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import FrameCounters, Scene
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
@@ -37,11 +38,17 @@ STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
 
 
 def plane_clearance(radii, pose, plane):
-    """How far an ellipsoid at ``pose`` ([x, y, z, qw, qx, qy, qz]) lies above ``plane`` ([n, offset]): the
-    centre's height less the ellipsoid's support along n (negative: it reaches below the plane)."""
-    normal = plane[:3]
-    local = quat_to_matrix(pose[3:]).T @ normal
-    return float(normal @ pose[:3] - plane[3] - np.sqrt(np.sum((radii * local) ** 2)))
+    """How far an ellipsoid at ``pose`` ([x, y, z, qw, qx, qy, qz], unit quaternion) lies above ``plane``
+    ([n, offset]): the centre's height less the ellipsoid's support along n (negative: it reaches below)."""
+    x, y, z, w, qx, qy, qz = pose.tolist()
+    nx, ny, nz, offset = plane.tolist()
+    ux, uy, uz = -qx, -qy, -qz  # the normal in the ellipsoid's frame: turned by the conjugate quaternion
+    tx, ty, tz = 2.0 * (uy * nz - uz * ny), 2.0 * (uz * nx - ux * nz), 2.0 * (ux * ny - uy * nx)
+    lx, ly, lz = nx + w * tx + (uy * tz - uz * ty), ny + w * ty + (uz * tx - ux * tz), nz + w * tz + (ux * ty - uy * tx)
+    a, b, c = radii.tolist()
+    return nx * x + ny * y + nz * z - offset - math.sqrt((a * lx) ** 2 + (b * ly) ** 2 + (c * lz) ** 2)
+
+
 COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))  # the counters every check reports
 
 

@@ -79,7 +79,7 @@ DELEGATED = {
     "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
 }
 BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monitor": "mjccd.bench.monitor",
-                "patches": "mjccd.patches.bench"}
+                "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity"}
 
 
 def _delegate(module_name, argv):

@@ -14,21 +14,42 @@ import mujoco
 
 from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
-from mjccd.mujoco.ellipsoids import fit_model
+from mjccd.fitting import DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES
+from mjccd.mujoco.ellipsoids import fit_model, fit_report
 from mjccd.mujoco.warnings import mujoco_warnings
 
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
 # Names of the geoms written by :func:`write_mjcf`; a model read back drops them (see :func:`_load`).
 GEOM_PREFIX = "mjccd_ellipsoid_"
+# The default class of those geoms: MuJoCo's own geom defaults, so that nothing of the model's classes
+# (a fromto, a mass, a fluid shape) reaches them.
+GEOM_CLASS = "mjccd_ellipsoid"
 
 
-def volume_report(ellipsoids):
-    """Plain-text table: body, geom, radii and ellipsoid/geometry volume ratio."""
+def volume_report(ellipsoids, report=None):
+    """Plain-text tables: per ellipsoid its body, geom, radii and volume ratio; per body a :func:`fit_report`.
+
+    Args:
+        ellipsoids: :class:`~mjccd.mujoco.EllipsoidSet`.
+        report: the tuple :func:`~mjccd.mujoco.ellipsoids.fit_report` returns, or None for the first table only.
+    """
     lines = [f"{'body':<24} {'geom':<16} {'radii':<30} {'volume ratio':>12}"]
     for b, g, r, v in zip(ellipsoids.bodies, ellipsoids.geoms, ellipsoids.radii, ellipsoids.volume_ratios):
         radii = " ".join(f"{x:.4g}" for x in r)
         lines.append(f"{b:<24} {g or '-':<16} {radii:<30} {v:>12.3f}")
+    if report is not None:
+        lines += ["", f"{'body':<24} {'ellipsoids':>10} {'overshoot':>12} {'union volume ratio':>19}"]
+        for row in report:
+            overshoot = row.overshoot if row.overshoot > 1e-12 else 0.0  # rounding of an exact fit
+            lines.append(f"{row.body:<24} {row.ellipsoids:>10d} {overshoot:>12.4g} {row.volume_ratio:>19.3f}")
+        worst = max(report, key=lambda row: row.overshoot)
+        lines.append(f"{len(ellipsoids)} ellipsoids on {len(report)} bodies; largest overshoot {worst.overshoot:.4g} "
+                     f"({worst.body})")
+        lines.append(f"overshoot: the farthest point of a body's ellipsoids from its geometry (model units), over "
+                     f"{SURFACE_SAMPLES} points on each ellipsoid's surface, refined, and the Halton points inside; "
+                     f"union volume ratio: volume of the ellipsoids over volume of the geometry, overlaps counted "
+                     f"once, from {VOLUME_SAMPLES} Halton points")
     return "\n".join(lines)
 
 
@@ -67,26 +88,24 @@ def load_model(model_path):
 def mjcf_with_ellipsoids(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=VISUAL_RGBA):
     """MJCF text of the model with the ellipsoids added as visual-only geoms, to be saved at ``output_path``.
 
-    The geoms have ``contype = conaffinity = 0``, zero density and their own
-    ``group`` (hidden or shown with the viewer's group toggles), so the
-    simulation is unchanged.  Ellipsoids of an earlier fit are replaced.
-    Asset folders are rewritten relative to ``output_path``.
+    The geoms have ``contype = conaffinity = 0``, zero mass and density, their
+    own ``group`` (hidden or shown with the viewer's group toggles) and their
+    own default class (:func:`_clean_class`: nothing of the model's defaults
+    reaches them), so the simulation is unchanged.  Ellipsoids of an earlier
+    fit are replaced.  ``meshdir`` and ``texturedir`` (``assetdir`` sets both)
+    are rewritten relative to ``output_path`` and the model is compiled from
+    there, as MuJoCo will read the file; included files are written inline.
     """
     spec, model = _load(model_path)
     ids = ellipsoids.body_ids(model)
+    clean = _clean_class(spec, group, rgba)
     for k, (bid, r, p, q) in enumerate(zip(ids, ellipsoids.radii, ellipsoids.positions, ellipsoids.quaternions)):
         body = spec.worldbody if bid == 0 else spec.bodies[bid]
-        geom = body.add_geom()
+        geom = body.add_geom(default=clean)
         geom.name = f"{GEOM_PREFIX}{k}"
-        geom.type = mujoco.mjtGeom.mjGEOM_ELLIPSOID
         geom.size = r
         geom.pos = p
         geom.quat = q
-        geom.contype = 0
-        geom.conaffinity = 0
-        geom.density = 0.0
-        geom.group = group
-        geom.rgba = rgba
     src_dir = os.path.dirname(os.path.abspath(model_path))
     out_dir = os.path.dirname(os.path.abspath(output_path))
     if src_dir != out_dir:
@@ -100,6 +119,35 @@ def mjcf_with_ellipsoids(model_path, ellipsoids, output_path, *, group=VISUAL_GR
     except ValueError as exc:
         raise InputError(f"{model_path}: MuJoCo cannot compile it with the ellipsoids added: "
                          f"{_one_line(exc)}") from None
+
+
+# every geom attribute a default class can set, reset to MuJoCo's built-in value in :data:`GEOM_CLASS`
+_GEOM_DEFAULTS = ("type", "size", "fromto", "contype", "conaffinity", "condim", "priority", "friction", "solmix",
+                  "solref", "solimp", "margin", "gap", "surfacevel", "adhesion", "mass", "density", "typeinertia",
+                  "fluid_ellipsoid", "fluid_coefs", "material", "rgba", "group", "hfieldname", "meshname", "fitscale")
+
+
+def _clean_class(spec, group, rgba):
+    """The default class :data:`GEOM_CLASS` of ``spec`` for the ellipsoids (made, or reset after an earlier fit).
+
+    A geom added to a body takes the body's child class, and a class can set
+    ``fromto`` (which then clashes with the ellipsoid's ``pos``), a mass, a
+    fluid shape, a material.  The ellipsoids get a class of their own whose
+    geom defaults are MuJoCo's built-in ones, plus what makes them visual-only
+    and massless; written to MJCF it keeps them so when the file is read back.
+    """
+    clean = spec.find_default(GEOM_CLASS) or spec.add_default(GEOM_CLASS, spec.default)
+    pristine = mujoco.MjSpec().worldbody.add_geom()
+    for name in _GEOM_DEFAULTS:
+        setattr(clean.geom, name, getattr(pristine, name))
+    clean.geom.userdata = []
+    clean.geom.type = mujoco.mjtGeom.mjGEOM_ELLIPSOID
+    clean.geom.contype = 0
+    clean.geom.conaffinity = 0
+    clean.geom.density = 0.0  # massless; the mass stays unset: MuJoCo writes no density for a class with a mass
+    clean.geom.group = group
+    clean.geom.rgba = rgba
+    return clean
 
 
 def write_mjcf(model_path, ellipsoids, output_path, *, group=VISUAL_GROUP, rgba=VISUAL_RGBA):
@@ -118,15 +166,19 @@ def _ellipsoid_file_bytes(ellipsoids, name):
 
 # ---------------------------------------------------------------- command line
 
-DESCRIPTION = """\
-Fit a bounding ellipsoid to each body (or geom) of a MuJoCo model, report the
-volume ratios, and write the model with the ellipsoids added as visual-only
-geoms named mjccd_ellipsoid_<k> (-o) and the ellipsoids themselves
-(--ellipsoids).  A model that already has geoms named mjccd_ellipsoid_* (the
-output of an earlier fit) is refitted: those geoms are dropped before the fit
-and replaced, never bounded and never duplicated.  Existing files, and the
-model itself, are replaced only with --force; both outputs appear together or
-not at all."""
+DESCRIPTION = f"""\
+Bound the bodies of a MuJoCo model by ellipsoids, report how tightly, and
+write the model with the ellipsoids added as visual-only geoms named
+mjccd_ellipsoid_<k> (-o) and the ellipsoids themselves (--ellipsoids).  By
+default each geom is covered by as few ellipsoids as keep every point of them
+within --tolerance ({DEFAULT_TOLERANCE:g} m) of the geom, a body's geoms sharing one
+ellipsoid where that stays within it; --tolerance none fits one ellipsoid per
+body (or per geom with --per geom), fewer but looser.  Every point of the
+bounded geoms lies inside the ellipsoids either way.  A model that already has
+geoms named mjccd_ellipsoid_* (the output of an earlier fit) is refitted:
+those geoms are dropped before the fit and replaced, never bounded and never
+duplicated.  Existing files, and the model itself, are replaced only with
+--force; both outputs appear together or not at all."""
 
 
 def _output_paths(args):
@@ -151,12 +203,21 @@ def main(argv=None):
     parser.add_argument("-o", "--output", help="MJCF file with the ellipsoids added as visual geoms")
     parser.add_argument("--ellipsoids", help="ellipsoid file to write (.json or .npz); "
                         "default: next to --output with extension .ellipsoids.json")
-    parser.add_argument("--per", choices=("body", "geom"), default="body")
+    parser.add_argument("--tolerance", type=_tolerance, default=DEFAULT_TOLERANCE, metavar="METRES",
+                        help=f"the farthest a point of the ellipsoids may lie from the geometry, in the model's "
+                        f"length unit (default {DEFAULT_TOLERANCE:g}, 1 cm in metres); 'none': one ellipsoid per "
+                        f"body or geom (--per)")
+    parser.add_argument("--per", choices=("body", "geom"), default="body",
+                        help="with a tolerance: 'body' lets a body's geoms share one ellipsoid where that stays "
+                        "within it; without: one ellipsoid per body or per geom (default body)")
+    parser.add_argument("--max-ellipsoids", type=int, default=MAX_ELLIPSOIDS, metavar="N",
+                        help=f"refuse a geom that needs more ellipsoids than this at the tolerance "
+                        f"(default {MAX_ELLIPSOIDS})")
     parser.add_argument("--bodies", nargs="+", help="only these bodies")
     parser.add_argument("--include-visual", action="store_true", help="also bound non-colliding geoms")
     parser.add_argument("--group", type=int, default=VISUAL_GROUP, help="geom group of the ellipsoids")
     parser.add_argument("--force", action="store_true", help="replace existing output files (even MODEL)")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no volume report")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no report")
     args = parser.parse_args(argv)
     written = []
     try:
@@ -166,7 +227,11 @@ def main(argv=None):
             output, target = _output_paths(args)
             written = [p for p in (output, target) if p]
             try:
-                ellipsoids = fit_model(model, per=args.per, bodies=args.bodies, include_visual=args.include_visual)
+                if args.max_ellipsoids < 1:
+                    raise InputError(f"--max-ellipsoids: expected a positive integer, got {args.max_ellipsoids}")
+                ellipsoids = fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
+                                       include_visual=args.include_visual, max_ellipsoids=args.max_ellipsoids)
+                report = None if args.quiet else fit_report(model, ellipsoids, include_visual=args.include_visual)
             except ValueError as exc:
                 raise InputError(f"{args.model}: {exc}") from None
             xml = mjcf_with_ellipsoids(args.model, ellipsoids, output, group=args.group) if output else None
@@ -180,8 +245,21 @@ def main(argv=None):
     except (MjccdError, ValueError, OSError) as exc:
         return _command.failure("fit", exc, written)
     if not args.quiet:
-        print(volume_report(ellipsoids))
+        print(volume_report(ellipsoids, report))
     return 0
+
+
+def _tolerance(text):
+    """``--tolerance``: a positive length, or ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a positive length or 'none', got {text!r}")
+    return value
 
 
 if __name__ == "__main__":

@@ -3,15 +3,18 @@
 The fitting maths on its own is tested in ``test_fitting.py``.
 """
 import json
+import pathlib
 
 import mujoco
 import numpy as np
 import pytest
 
 from mjccd.fit import main, volume_report, write_mjcf
-from mjccd.fitting import containment_factor
+from mjccd.fitting import DEFAULT_TOLERANCE, containment_factor
 from mjccd.mujoco import EllipsoidSet, load_ellipsoids
-from mjccd.mujoco.ellipsoids import fit_model, geom_shape
+from mjccd.mujoco.ellipsoids import fit_model, fit_report, geom_shape, mesh_hull
+
+MODELS = pathlib.Path(__file__).resolve().parents[1] / "models"
 
 SHAPES = """
 <mujoco>
@@ -218,11 +221,326 @@ def test_cli_main(tmp_path, capsys):
     src = tmp_path / "shapes.xml"
     src.write_text(SHAPES)
     out = tmp_path / "out.xml"
-    assert main([str(src), "-o", str(out)]) == 0
+    assert main([str(src), "-o", str(out), "--tolerance", "none"]) == 0
     assert "volume ratio" in capsys.readouterr().out
     es = load_ellipsoids(tmp_path / "out.ellipsoids.json")
     assert "robot" in es.bodies and out.exists()
+    assert len(es) == len(set(es.bodies))  # one per body: the fit without a tolerance
     assert main([str(tmp_path / "missing.xml"), "-o", str(out)]) == 2
     assert "cannot load" in capsys.readouterr().err
     assert main([str(src), "--bodies", "ghost", "-q"]) == 2
     assert "has no collision geometry" in capsys.readouterr().err
+
+
+def test_cli_refuses_a_geom_that_needs_too_many_ellipsoids(tmp_path, capsys):
+    """The 30 cm wedge has sharp corners: at the default 1 cm it needs more than 64 ellipsoids; nothing is written."""
+    src = tmp_path / "shapes.xml"
+    src.write_text(SHAPES)
+    out = tmp_path / "out.xml"
+    assert main([str(src), "-o", str(out), "--bodies", "rock", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "body 'rock': geom '#7': tolerance: this mesh needs more than 64 ellipsoids to stay within 0.01" in err
+    assert not out.exists() and not (tmp_path / "out.ellipsoids.json").exists()
+    assert main([str(src), "-o", str(out), "--bodies", "rock", "-q", "--tolerance", "0.05"]) == 0
+    with pytest.raises(SystemExit):
+        main([str(src), "--tolerance", "-1"])
+    assert "--tolerance: expected a positive length or 'none', got '-1'" in capsys.readouterr().err
+
+
+def test_cli_reports_count_overshoot_and_union_volume_per_body(tmp_path, capsys):
+    src = tmp_path / "shapes.xml"
+    src.write_text(SHAPES)
+    out = tmp_path / "out.xml"
+    assert main([str(src), "-o", str(out), "--tolerance", "0.05"]) == 0
+    text = capsys.readouterr().out
+    assert "union volume ratio" in text and "largest overshoot" in text
+    es = load_ellipsoids(tmp_path / "out.ellipsoids.json")
+    model = mujoco.MjModel.from_xml_string(SHAPES)
+    for row in fit_report(model, es, surface_samples=300, volume_samples=4096):
+        assert row.ellipsoids == es.bodies.count(row.body)
+        assert row.overshoot <= 0.05 * (1 + 1e-9)
+        assert f"{row.body:<24} {row.ellipsoids:>10d}" in text
+    written = mujoco.MjModel.from_xml_path(str(out))
+    assert written.ngeom == model.ngeom + len(es)
+
+
+# ---------------------------------------------------------------- fits to a tolerance
+
+
+def _suite(name):
+    dm_control = pytest.importorskip("dm_control")
+    return pathlib.Path(dm_control.__file__).parent / "suite" / f"{name}.xml"
+
+
+def _kinova():
+    """The Kinova Jaco arm of models/arm_obstacle.xml: its STL meshes and rings, less the fitted bounds and the beam."""
+    spec = mujoco.MjSpec.from_file(str(MODELS / "arm_obstacle.xml"))
+    for geom in list(spec.geoms):
+        if geom.name.endswith("_bound") or geom.parent.name == "obstacle":
+            spec.delete(geom)
+    return spec.compile()
+
+
+def _mesh_samples(model, geom_id, rng, n=600):
+    """A mesh geom's own vertices, points on its hull's faces and inside, in the body frame."""
+    shape = geom_shape(model, geom_id, hull=True)
+    v, f = shape.vertices, shape.faces
+    on_faces = np.einsum("ij,ijk->ik", rng.dirichlet(np.ones(3), n), v[f[rng.integers(0, len(f), n)]])
+    inside = v.mean(axis=0) + (on_faces - v.mean(axis=0)) * rng.uniform(0, 1, (n, 1))
+    mesh = int(model.geom_dataid[geom_id])
+    start = model.mesh_vertadr[mesh]
+    local = np.vstack([model.mesh_vert[start:start + model.mesh_vertnum[mesh]], on_faces, inside])
+    return shape.position + local @ shape.rotation.T
+
+
+def _check_fit(model, es, tolerance, *, include_visual=False, seed=0):
+    """Every sampled point of every bounded geom lies in its body's ellipsoids; the measured overshoot is within t."""
+    rng = np.random.default_rng(seed)
+    for body in dict.fromkeys(es.bodies):
+        rows = [k for k, b in enumerate(es.bodies) if b == body]
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, body)
+        for g in range(model.body_geomadr[b], model.body_geomadr[b] + model.body_geomnum[b]):
+            if int(model.geom_type[g]) in (mujoco.mjtGeom.mjGEOM_PLANE, mujoco.mjtGeom.mjGEOM_HFIELD):
+                continue
+            if not (include_visual or model.geom_contype[g] | model.geom_conaffinity[g]):
+                continue
+            mesh = model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH
+            pts = _mesh_samples(model, g, rng) if mesh else _surface_samples(model, g, n=500, seed=seed)
+            if not mesh:  # and inside
+                pts = np.vstack([pts, model.geom_pos[g] + (pts - model.geom_pos[g]) * rng.uniform(0, 1, (len(pts), 1))])
+            reach = np.min([_mahalanobis(es, k, pts) for k in rows], axis=0)
+            assert reach.max() <= 1.0 + 1e-9, (body, g, reach.max())
+    report = fit_report(model, es, include_visual=include_visual, surface_samples=300, volume_samples=4096)
+    for row in report:
+        assert row.overshoot <= tolerance * (1.0 + 1e-9), row
+        assert row.volume_ratio >= 1.0 - 0.02, row  # the union holds the geometry (up to the sampling)
+    return report
+
+
+@pytest.mark.parametrize("name", ["humanoid", "walker", "quadruped", "manipulator", "cheetah"])
+def test_suite_models_fit_to_tolerances(name):
+    model = mujoco.MjModel.from_xml_path(str(_suite(name)))
+    counts = []
+    for tolerance in (0.005, 0.01, 0.02):
+        es = fit_model(model, tolerance=tolerance)
+        _check_fit(model, es, tolerance)
+        counts.append({b: es.bodies.count(b) for b in es.bodies})
+    for fine, coarse in zip(counts, counts[1:]):  # never more ellipsoids at a larger tolerance, body by body
+        assert all(coarse[b] <= fine[b] for b in fine), (fine, coarse)
+
+
+def test_humanoid_limbs_at_the_default_tolerance():
+    """dm-control's humanoid: within 1 cm with 2-3 ellipsoids a limb, where one per body overshoots by 7-8 cm."""
+    model = mujoco.MjModel.from_xml_path(str(_suite("humanoid")))
+    tight = {r.body: r for r in fit_report(model, fit_model(model, tolerance=DEFAULT_TOLERANCE),
+                                           surface_samples=500, volume_samples=4096)}
+    loose = {r.body: r for r in fit_report(model, fit_model(model), surface_samples=500, volume_samples=4096)}
+    for limb in ("right_thigh", "left_shin", "right_upper_arm", "left_lower_arm"):
+        assert tight[limb].overshoot <= DEFAULT_TOLERANCE and tight[limb].ellipsoids <= 3
+        assert loose[limb].ellipsoids == 1 and loose[limb].overshoot > 0.07
+        assert tight[limb].volume_ratio < loose[limb].volume_ratio
+    for foot in ("right_foot", "left_foot"):  # two capsules each
+        assert tight[foot].ellipsoids <= 4 and tight[foot].overshoot <= DEFAULT_TOLERANCE
+
+
+def test_kinova_meshes_fit_to_tolerances():
+    """The STL meshes of the Kinova arm (models/kinova), their hulls as MuJoCo collides them, and the rings.
+
+    The long D-shaped link, the wrist, the hand with its insert and a finger; the whole arm at 1 cm
+    takes about a minute (140-odd ellipsoids: the hulls' edges are sharp).
+    """
+    model = _kinova()
+    counts = []
+    for tolerance in (0.02, 0.03, 0.05):
+        es = fit_model(model, tolerance=tolerance, include_visual=True, per="geom",
+                       bodies=["b_2", "b_4", "hand", "b_finger_1"])
+        _check_fit(model, es, tolerance, include_visual=True)
+        counts.append(len(es))
+    assert counts == sorted(counts, reverse=True) and counts[0] > counts[-1]
+
+
+def test_mesh_hull_is_mujocos_and_its_distance_agrees_with_mujoco():
+    """The hull of a visual-only mesh (no graph in the model) is MuJoCo's, and distances agree with mj_geomDistance."""
+    model = _kinova()
+    g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "link_4")
+    mesh = int(model.geom_dataid[g])
+    assert model.mesh_graphadr[mesh] == -1  # a visual mesh: MuJoCo made no hull of its own
+    vertices, faces = mesh_hull(model, mesh)
+    start = model.mesh_vertadr[mesh]
+    every = model.mesh_vert[start:start + model.mesh_vertnum[mesh]].astype(float)
+    e1, e2 = vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]]
+    normals = np.cross(e1, e2)
+    offsets = np.einsum("ij,ij->i", normals, vertices[faces[:, 0]])
+    assert np.all(every @ normals.T <= offsets + 1e-12)  # outward faces, every vertex inside
+    # distances from points around the hull to it, against MuJoCo's own, with a point-sized sphere
+    rng = np.random.default_rng(2)
+    points = rng.normal(size=(40, 3)) * 0.06
+    spec = mujoco.MjSpec()
+    spec.add_mesh(name="m", uservert=every.ravel().tolist())
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="m")
+    probe = spec.worldbody.add_body(name="probe", mocap=True)
+    probe.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[1e-9, 0, 0])
+    check = spec.compile()  # MuJoCo recentres the vertices and moves the geom frame so the mesh stays put
+    data = mujoco.MjData(check)
+    shape = geom_shape(model, g, hull=True)
+    ours = shape.distance(shape.position + points @ shape.rotation.T)
+    theirs = []
+    for p in points:
+        data.mocap_pos[0] = p
+        mujoco.mj_kinematics(check, data)
+        theirs.append(max(mujoco.mj_geomDistance(check, data, 0, 1, 1.0, None), 0.0))
+    assert np.any(ours == 0.0) and np.any(ours > 0.01)
+    np.testing.assert_allclose(ours, theirs, atol=1e-5)
+
+
+def _random_model(rng, bodies=6):
+    """MJCF of free bodies with 1-3 random geoms each: capsules, boxes, cylinders, ellipsoids, spheres."""
+    xml = ["<mujoco><worldbody>"]
+    for b in range(bodies):
+        xml.append(f'<body name="b{b}" pos="{b} 0 1"><freejoint/>')
+        for _ in range(rng.integers(1, 4)):
+            kind = rng.choice(["capsule", "box", "cylinder", "ellipsoid", "sphere"])
+            big = rng.uniform(0.02, 0.15)
+            small = big / rng.uniform(1.0, 20.0)
+            size = {"capsule": [small, big], "cylinder": [small, big], "sphere": [big],
+                    "box": [big, small, rng.uniform(small, big)], "ellipsoid": [big, small, rng.uniform(small, big)]}
+            pos = " ".join(f"{x:.4f}" for x in rng.normal(size=3) * 0.05)
+            euler = " ".join(f"{x:.4f}" for x in rng.uniform(-np.pi, np.pi, 3))
+            xml.append(f'<geom type="{kind}" size="{" ".join(f"{x:.5f}" for x in size[kind])}" pos="{pos}" '
+                       f'euler="{euler}"/>')
+        xml.append("</body>")
+    xml.append("</worldbody></mujoco>")
+    return mujoco.MjModel.from_xml_string("".join(xml))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_models_fit_to_tolerances(seed):
+    rng = np.random.default_rng(seed)
+    model = _random_model(rng)
+    for per in ("body", "geom"):
+        counts = []
+        for tolerance in (0.01, 0.02, 0.04):
+            es = fit_model(model, tolerance=tolerance, per=per)
+            _check_fit(model, es, tolerance, seed=seed)
+            counts.append([es.bodies.count(f"b{b}") for b in range(model.nbody - 1)])
+        for fine, coarse in zip(counts, counts[1:]):
+            assert all(c <= f for f, c in zip(fine, coarse)), counts
+
+
+def test_tolerance_fit_files_keep_the_format(tmp_path):
+    model = mujoco.MjModel.from_xml_path(str(_suite("walker")))
+    es = fit_model(model, tolerance=DEFAULT_TOLERANCE)
+    path = tmp_path / "walker.json"
+    es.save(path)
+    doc = json.loads(path.read_text())
+    assert doc["version"] == 1
+    assert set(doc["ellipsoids"][0]) == {"body", "geom", "radii", "position", "quaternion", "volume_ratio"}
+    back = load_ellipsoids(path)
+    assert back.bodies == es.bodies and back.geoms == es.geoms
+    np.testing.assert_array_equal(back.radii, es.radii)
+    # a cover's volume ratios are each ellipsoid over its geom: the pieces of a capsule add up past 1
+    torso = [k for k, g in enumerate(es.geoms) if g == "torso"]
+    assert len(torso) > 1 and es.volume_ratios[torso].sum() > 1.0 > es.volume_ratios[torso].min()
+
+
+def test_tolerance_errors_name_the_argument():
+    model = mujoco.MjModel.from_xml_string(SHAPES)
+    for bad in (0, -0.01, np.nan, "1cm", True):
+        with pytest.raises(ValueError, match="tolerance: expected None or a positive length, got"):
+            fit_model(model, tolerance=bad)
+    with pytest.raises(ValueError, match="body 'cube': geom '#2': tolerance: this box needs more than 4 ellipsoids"):
+        fit_model(model, tolerance=0.01, bodies=["cube"], max_ellipsoids=4)
+
+
+# ---------------------------------------------------------------- MJCF output of models with classes and assets
+
+
+def test_quadruped_written_with_ellipsoids_compiles_and_keeps_its_masses(tmp_path):
+    """Regression: the added geoms took the body's child class, whose fromto clashed with their pos."""
+    src = _suite("quadruped")
+    out = tmp_path / "quadruped_fit.xml"
+    assert main([str(src), "-o", str(out), "-q"]) == 0
+    written = mujoco.MjModel.from_xml_path(str(out))
+    original = mujoco.MjModel.from_xml_path(str(src))
+    es = load_ellipsoids(tmp_path / "quadruped_fit.ellipsoids.json")
+    assert written.ngeom == original.ngeom + len(es)
+    np.testing.assert_allclose(written.body_mass, original.body_mass, rtol=1e-5)
+    added = [g for g in range(written.ngeom)
+             if (mujoco.mj_id2name(written, mujoco.mjtObj.mjOBJ_GEOM, g) or "").startswith("mjccd_ellipsoid_")]
+    assert len(added) == len(es)
+    assert all(written.geom_type[g] == mujoco.mjtGeom.mjGEOM_ELLIPSOID and written.geom_contype[g] == 0
+               and written.geom_conaffinity[g] == 0 and written.geom_group[g] == 5 for g in added)
+    np.testing.assert_allclose(written.geom_size[added], es.radii, rtol=1e-5)
+
+
+def test_ellipsoids_take_no_mass_fromto_or_fluid_shape_from_the_defaults(tmp_path):
+    src = tmp_path / "classes.xml"
+    src.write_text("""<mujoco>
+     <default><geom mass="2" fluidshape="ellipsoid"/>
+      <default class="limb"><geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.04" material="skin"/></default>
+     </default>
+     <asset><material name="skin" rgba="1 0 0 1"/></asset>
+     <worldbody><body name="arm" childclass="limb"><freejoint/><geom/><geom fromto="0 0 0 0 0.2 0"/></body></worldbody>
+    </mujoco>""")
+    out = tmp_path / "sub" / "classes_fit.xml"
+    out.parent.mkdir()
+    assert main([str(src), "-o", str(out), "-q"]) == 0
+    before, after = mujoco.MjModel.from_xml_path(str(src)), mujoco.MjModel.from_xml_path(str(out))
+    np.testing.assert_allclose(after.body_mass, before.body_mass, rtol=1e-6)
+    added = range(before.ngeom, after.ngeom)
+    assert len(added) > 0
+    assert np.all(after.geom_fluid[added, 0] == 0)  # no fluid forces on the ellipsoids
+    assert np.all(after.geom_matid[added] == -1)
+    # refitting the written model replaces the ellipsoids and reuses their class
+    again = tmp_path / "sub" / "classes_fit2.xml"
+    assert main([str(out), "-o", str(again), "-q"]) == 0
+    assert mujoco.MjModel.from_xml_path(str(again)).ngeom == after.ngeom
+
+
+def test_kinova_written_elsewhere_finds_its_stl_meshes(tmp_path):
+    """meshdir="kinova/" relative to models/: rewritten relative to an output folder elsewhere on disk."""
+    out = tmp_path / "far" / "away" / "arm_fit.xml"
+    out.parent.mkdir(parents=True)
+    assert main([str(MODELS / "arm_obstacle.xml"), "-o", str(out), "-q", "--include-visual",
+                 "--bodies", "b_4", "hand", "--tolerance", "0.05"]) == 0
+    written = mujoco.MjModel.from_xml_path(str(out))
+    original = mujoco.MjModel.from_xml_path(str(MODELS / "arm_obstacle.xml"))
+    assert written.nmesh == original.nmesh
+    np.testing.assert_array_equal(written.mesh_vertnum, original.mesh_vertnum)
+    np.testing.assert_allclose(written.mesh_vert, original.mesh_vert, atol=1e-6)
+
+
+def test_assets_and_includes_are_found_from_another_folder(tmp_path):
+    """assetdir (meshdir and texturedir both), a texture file and an included file in a subfolder."""
+    source = tmp_path / "src"
+    (source / "assets").mkdir(parents=True)
+    (source / "parts").mkdir()
+    (source / "assets" / "wrist.stl").write_bytes((MODELS / "kinova" / "wrist.stl").read_bytes())
+    (source / "assets" / "check.png").write_bytes(_png(4, 4))
+    (source / "parts" / "wrist.xml").write_text(
+        '<mujoco><worldbody><body name="wrist" pos="0 0 1"><freejoint/>'
+        '<geom type="mesh" mesh="wrist" material="checker"/></body></worldbody></mujoco>')
+    (source / "model.xml").write_text(
+        '<mujoco><compiler assetdir="assets"/><asset><mesh name="wrist" file="wrist.stl"/>'
+        '<texture name="check" type="2d" file="check.png"/><material name="checker" texture="check"/></asset>'
+        '<include file="parts/wrist.xml"/></mujoco>')
+    out = tmp_path / "elsewhere" / "deeper" / "model_fit.xml"
+    out.parent.mkdir(parents=True)
+    assert main([str(source / "model.xml"), "-o", str(out), "-q", "--tolerance", "0.03"]) == 0
+    written = mujoco.MjModel.from_xml_path(str(out))
+    assert written.nmesh == 1 and written.ntex == 1
+    es = load_ellipsoids(out.with_suffix(".ellipsoids.json"))
+    assert written.ngeom == 1 + len(es)
+
+
+def _png(width, height):
+    """A small grey PNG, written without an imaging library."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    rows = b"".join(b"\x00" + b"\x80\x80\x80" * width for _ in range(height))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))

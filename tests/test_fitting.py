@@ -347,3 +347,252 @@ def test_bvh_parts_are_contained_in_their_ellipsoids():
             points.append(_surface(capsule, rng, 500))
         reach = _radius(centre, quat_to_matrix(quat), radii, np.vstack(points))
         assert 0.97 <= reach.max() <= 1.0, clip.joints[joint].name
+
+
+# ---------------------------------------------------------------- covers to a tolerance
+
+from mjccd.fitting import (DEFAULT_TOLERANCE, _hull_distance, _surface_within, _trust_region,  # noqa: E402
+                           cover_report, cover_shape, within_tolerance)
+
+CUBE_FACES = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                       [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
+CUBE_SIGNS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+OCTAHEDRON = np.vstack([np.eye(3), -np.eye(3)])
+OCTAHEDRON_FACES = np.array([[a, b, c] for a in (0, 3) for b in (1, 4) for c in (2, 5)])
+
+
+def _box_distance(local, half):
+    return np.linalg.norm(np.maximum(np.abs(local) - half, 0.0), axis=1)
+
+
+def _octahedron_distance(local, a):
+    """Distance to ``|x| + |y| + |z| <= a``: projection onto the l1 ball (sort-based simplex projection)."""
+    y = np.abs(local)
+    inside = y.sum(axis=1) <= a
+    u = -np.sort(-y, axis=1)
+    css = np.cumsum(u, axis=1) - a
+    k = np.arange(1, 4)
+    rho = np.max(np.where(u - css / k > 0, k, 0), axis=1)
+    theta = css[np.arange(len(y)), rho - 1] / rho
+    proj = np.maximum(y - theta[:, None], 0.0)
+    return np.where(inside, 0.0, np.linalg.norm(y - proj, axis=1))
+
+
+def _test_distance(shape, points):
+    """Distance to a shape, written here independently of :meth:`Shape.distance` (meshes: a box or an octahedron)."""
+    local = (points - shape.position) @ shape.rotation
+    s = shape.size
+    if shape.kind == "sphere":
+        return np.maximum(np.linalg.norm(local, axis=1) - s[0], 0.0)
+    if shape.kind == "capsule":
+        z = np.clip(local[:, 2], -s[1], s[1])
+        return np.maximum(np.linalg.norm(local - np.c_[np.zeros((len(z), 2)), z], axis=1) - s[0], 0.0)
+    if shape.kind == "cylinder":
+        return np.hypot(np.maximum(np.hypot(local[:, 0], local[:, 1]) - s[0], 0.0),
+                        np.maximum(np.abs(local[:, 2]) - s[1], 0.0))
+    if shape.kind == "box":
+        return _box_distance(local, s)
+    if shape.kind == "ellipsoid":  # an upper bound: the way out along the ray from the centre
+        return np.maximum(np.linalg.norm(local / s, axis=1) - 1.0, 0.0) * s.max()
+    if len(shape.vertices) == 8:
+        return _box_distance(local, np.abs(shape.vertices).max(axis=0))
+    return _octahedron_distance(local, np.abs(shape.vertices).max())
+
+
+def _solid(shape, rng, n=2000):
+    """Points on the surface (a mesh: its vertices and points on its faces) and inside the shape, placed."""
+    if shape.kind == "mesh":
+        v, f = shape.vertices, shape.faces
+        w = rng.dirichlet(np.ones(3), n)
+        tri = f[rng.integers(0, len(f), n)]
+        on_faces = np.einsum("ij,ijk->ik", w, v[tri])
+        local = np.vstack([v, on_faces, on_faces * rng.uniform(0, 1, (n, 1))])
+        return shape.position + local @ shape.rotation.T
+    surface = _surface(shape, rng, n)
+    centre = np.asarray(shape.position)
+    return np.vstack([surface, centre + (surface - centre) * rng.uniform(0, 1, (len(surface), 1))])
+
+
+def _union_reach(cover, points):
+    """The least ``|diag(1/radii) R^T (x - centre)|`` over the cover's ellipsoids, per point: <= 1 inside the union."""
+    return np.min([_radius(c, R, r, points) for c, R, r in cover], axis=0)
+
+
+def _overshoot(cover, shape, rng, n=3000):
+    """Largest test-side distance to the shape over random points on the cover's surfaces."""
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    return max(float(_test_distance(shape, c + u @ (R * r).T).max()) for c, R, r in cover)
+
+
+def _random_shape(rng, kind):
+    """A shape of the kind with a random size (1-20 cm), aspect ratio up to 20:1 and pose."""
+    big = rng.uniform(0.02, 0.2)
+    small = big / rng.uniform(1.0, 20.0)
+    sizes = {"sphere": [big, 0, 0], "capsule": [small, big, 0], "cylinder": [small, big, 0],
+             "ellipsoid": [big, small, rng.uniform(small, big)], "box": [big, small, rng.uniform(small, big)]}
+    if rng.uniform() < 0.5 and kind in ("capsule", "cylinder"):
+        sizes[kind] = [big, small, 0]  # a disk or a flat pill
+    return Shape(kind, np.array(sizes[kind]), rng.normal(size=3) * 0.1, _rotation(rng))
+
+
+@pytest.mark.parametrize("kind", ["sphere", "ellipsoid", "capsule", "cylinder", "box"])
+def test_random_covers_contain_the_shape_and_stay_within_the_tolerance(kind):
+    """Every sampled surface and inside point is in the union; no sampled ellipsoid point is farther than t."""
+    rng = np.random.default_rng(["sphere", "ellipsoid", "capsule", "cylinder", "box"].index(kind))
+    for _ in range(8):
+        shape = _random_shape(rng, kind)
+        points = _solid(shape, rng)
+        counts = []
+        for t in (0.005, 0.01, 0.02):
+            cover = cover_shape(shape, t)
+            assert _union_reach(cover, points).max() <= 1.0 + 1e-12, (shape, t)
+            assert _overshoot(cover, shape, rng) <= t * (1.0 + 1e-9), (shape, t)
+            counts.append(len(cover))
+        assert counts == sorted(counts, reverse=True), (shape, counts)
+
+
+def test_spheres_and_ellipsoids_are_their_own_cover():
+    rng = np.random.default_rng(5)
+    for kind in ("sphere", "ellipsoid"):
+        shape = _random_shape(rng, kind)
+        ((c, R, r),) = cover_shape(shape, 1e-4)
+        assert _overshoot([(c, R, r)], shape, rng) <= 1e-12
+        np.testing.assert_allclose(np.sort(r), np.sort(shape.size if kind == "ellipsoid" else shape.size[:1].repeat(3)),
+                                   rtol=1e-12)
+
+
+def test_capsule_takes_one_spheroid_exactly_when_it_can_hold_both_end_balls():
+    """A spheroid of equatorial radius R = r + t, tips at h + R, holds both end balls iff h <= 2R(R^2 - r^2)/r^2."""
+    r, t = 0.05, 0.01
+    R = r + t
+    limit = 2.0 * R * (R * R - r * r) / (r * r)
+    for h, count in ((0.98 * limit, 1), (1.02 * limit, 2)):
+        cover = cover_shape(Shape("capsule", np.array([r, h, 0.0]), np.zeros(3), np.eye(3)), t / (1.0 - 1e-9))
+        assert len(cover) == count
+
+
+def test_box_corner_condition_decides_the_grid():
+    """An axis-aligned ellipsoid within t of a box has semi-axes <= A + t: one holds the box iff sum (A/(A+t))^2 <= 1.
+
+    With cells, the corner cell decides, axis by axis: a cube of half side
+    0.1 at t = 0.05 fails 1 x 1 x 1 (3 (0.1/0.15)^2 = 1.33) and 1 x 1 x 2
+    (2 (0.1/0.15)^2 + (0.05/0.1)^2 = 1.14) and passes 1 x 2 x 2 (0.94).
+    """
+    for half, t, count in (([0.0198, 0.01, 0.035], 0.02, 1), ([0.0198, 0.01, 0.035], 0.01, 3),
+                           ([0.1, 0.1, 0.1], 0.1, 1), ([0.1, 0.1, 0.1], 0.05, 4)):
+        shape = Shape("box", np.array(half), np.zeros(3), np.eye(3))
+        cover = cover_shape(shape, t)
+        assert len(cover) == count, (half, t, len(cover))
+        assert (np.sum((np.array(half) / (np.array(half) + t)) ** 2) <= 1.0) == (count == 1)
+
+
+def test_cover_of_a_cube_at_its_circumscribed_sphere_overshoots_by_the_closed_form():
+    """A cube of half side a fits one sphere of radius a sqrt(3) once t >= a (sqrt(3) - 1), its overshoot."""
+    a = 0.1
+    cube = Shape("box", np.full(3, a), np.zeros(3), np.eye(3))
+    cover = cover_shape(cube, a * (np.sqrt(3.0) - 1.0) * (1.0 + 1e-6))
+    assert len(cover) == 1
+    np.testing.assert_allclose(cover[0][2], np.full(3, a * np.sqrt(3.0)), rtol=1e-6)
+    overshoot, ratio = cover_report(cover, [cube], volume_samples=2 ** 14)
+    assert overshoot == pytest.approx(a * (np.sqrt(3.0) - 1.0), rel=1e-9)
+    assert ratio == pytest.approx(np.pi * np.sqrt(3.0) / 2.0, rel=0.02)
+
+
+@pytest.mark.parametrize("mesh", ["box", "octahedron"])
+def test_mesh_covers_contain_the_hull_and_stay_within_the_tolerance(mesh):
+    """Hull vertices, points on every face and inside are covered; sampled overshoot within t; count monotone."""
+    rng = np.random.default_rng(8)
+    if mesh == "box":
+        vertices, faces, tolerances = CUBE_SIGNS * np.array([0.12, 0.03, 0.05]), CUBE_FACES, (0.01, 0.02, 0.04)
+    else:  # sharp corners: 40 ellipsoids at 2 cm, more than 64 at 1.5 cm
+        vertices, faces, tolerances = 0.1 * OCTAHEDRON, OCTAHEDRON_FACES, (0.03, 0.04, 0.05)
+    shape = Shape("mesh", np.zeros(3), rng.normal(size=3) * 0.1, _rotation(rng), vertices=vertices, faces=faces)
+    points = _solid(shape, rng)
+    counts = []
+    for t in tolerances:
+        cover = cover_shape(shape, t)
+        assert _union_reach(cover, points).max() <= 1.0 + 1e-9
+        assert _overshoot(cover, shape, rng) <= t * (1.0 + 1e-9)
+        counts.append(len(cover))
+    assert counts == sorted(counts, reverse=True) and counts[0] > counts[-1]
+
+
+def test_box_mesh_needs_no_more_than_a_few_more_ellipsoids_than_the_box():
+    box = Shape("box", np.array([0.0198, 0.01, 0.035]), np.zeros(3), np.eye(3))
+    mesh = Shape("mesh", np.zeros(3), np.zeros(3), np.eye(3), vertices=CUBE_SIGNS * box.size, faces=CUBE_FACES)
+    for t in (0.01, 0.02):
+        assert len(cover_shape(box, t)) <= len(cover_shape(mesh, t)) <= len(cover_shape(box, t)) + 2
+
+
+def test_distances_to_shapes_against_independent_formulas():
+    rng = np.random.default_rng(12)
+    points = rng.normal(size=(500, 3)) * 0.2
+    for kind in ("sphere", "capsule", "cylinder", "box"):
+        shape = _random_shape(rng, kind)
+        np.testing.assert_allclose(shape.distance(points), _test_distance(shape, points), atol=1e-14)
+    for vertices, faces in ((CUBE_SIGNS * [0.1, 0.05, 0.02], CUBE_FACES), (0.1 * OCTAHEDRON, OCTAHEDRON_FACES)):
+        mesh = Shape("mesh", np.zeros(3), rng.normal(size=3) * 0.05, _rotation(rng), vertices=vertices, faces=faces)
+        np.testing.assert_allclose(mesh.distance(points), _test_distance(mesh, points), atol=1e-12)
+        assert np.array_equal(mesh.contains(points), _test_distance(mesh, points) == 0.0)
+    # an ellipsoid: the distance is attained on the surface, and no surface sample is nearer
+    shape = Shape("ellipsoid", np.array([0.1, 0.03, 0.06]), np.zeros(3), _rotation(rng))
+    u = rng.normal(size=(50000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    surface = u * shape.size @ shape.rotation.T
+    far = points[shape.distance(points) > 0][:40]
+    brute = np.min(np.linalg.norm(far[:, None, :] - surface[None], axis=2), axis=1)
+    d = shape.distance(far)
+    assert np.all(d <= brute + 1e-12) and np.all(d >= brute - 2e-3 * brute.max())
+    assert np.all(shape.distance(0.5 * surface[:100]) == 0.0)
+
+
+def test_hull_distance_is_zero_inside_and_matches_the_box():
+    vertices = CUBE_SIGNS * np.array([0.2, 0.1, 0.05])
+    mesh = Shape("mesh", np.zeros(3), np.zeros(3), np.eye(3), vertices=vertices, faces=CUBE_FACES)
+    a, b, c, normals, offsets = mesh._hull()
+    grid = np.stack(np.meshgrid(*[np.linspace(-0.4, 0.4, 17)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    np.testing.assert_allclose(_hull_distance(grid, a, b, c, normals, offsets),
+                               _box_distance(grid, np.array([0.2, 0.1, 0.05])), atol=1e-15)
+
+
+def test_proofs_of_closeness_agree_with_samples():
+    """``within_tolerance`` and ``_surface_within`` prove what samples show and refuse what they refute."""
+    rng = np.random.default_rng(3)
+    cube = Shape("box", np.full(3, 0.1), np.zeros(3), np.eye(3))
+    exact = 0.1 * (np.sqrt(3.0) - 1.0)  # the circumscribed sphere's overshoot
+    sphere = (np.zeros(3), np.eye(3), np.full(3, 0.1 * np.sqrt(3.0)))
+    for proof in (lambda t: within_tolerance(*sphere, [cube], t),
+                  lambda t: _surface_within(*sphere, cube.distance, t)):
+        assert proof(exact * 1.01)
+        assert not proof(exact * 0.99)
+    # two balls side by side: their common ellipsoid reaches farthest between them, inside
+    balls = [Shape("sphere", np.array([0.05, 0, 0]), np.array([x, 0.0, 0.0]), np.eye(3)) for x in (-0.1, 0.1)]
+    c, R, r = fit_shapes(balls)
+    u = rng.normal(size=(20000, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    inside = c + (u * rng.uniform(0, 1, (len(u), 1)) ** (1 / 3)) @ (R * r).T
+    worst = float(np.min([b.distance(inside) for b in balls], axis=0).max())
+    assert not within_tolerance(c, R, r, balls, 0.9 * worst)
+    assert within_tolerance(c, R, r, balls, 1.3 * worst)
+
+
+def test_trust_region_bound_survives_a_gradient_below_rounding():
+    """Regression: a disk whose offset lies along its flat axis up to 1e-19 gave NaN (h_max + |g| == h_max)."""
+    a = np.array([0.0, -1.3e-19, 0.21])
+    B = np.array([[0.909, 0.0, 0.0], [0.0, 0.909, 0.0], [0.0, -1.3e-20, 0.0]])
+    bound, u = _trust_region(a, B)
+    assert np.isfinite(bound) and np.all(np.isfinite(u))
+    assert bound == pytest.approx(a @ a + 0.909 ** 2, rel=1e-12)
+
+
+def test_cover_errors_name_the_argument():
+    capsule = Shape("capsule", np.array([0.05, 0.2, 0.0]), np.zeros(3), np.eye(3))
+    for bad in (0.0, -0.01, np.nan, np.inf, True, "0.01"):
+        with pytest.raises(ValueError, match="tolerance: expected a positive length, got"):
+            cover_shape(capsule, bad)
+    with pytest.raises(ValueError, match="max_ellipsoids: expected a positive integer, got 0"):
+        cover_shape(capsule, 0.01, max_ellipsoids=0)
+    with pytest.raises(ValueError, match="tolerance: this box needs more than 64 ellipsoids to stay within 0.001 "):
+        cover_shape(Shape("box", np.full(3, 0.1), np.zeros(3), np.eye(3)), 0.001)
+    assert DEFAULT_TOLERANCE == 0.01

@@ -13,7 +13,8 @@ import numpy as np
 
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
-from mjccd.fitting import Shape, fit_shapes
+from mjccd.fitting import (MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES, Shape, cover_report, cover_shape,
+                           fit_shapes, within_tolerance)
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
 
 FORMAT_VERSION = 1
@@ -225,8 +226,12 @@ def geom_ellipsoids(model, group=BOUND_GROUP, *, any_group=False):
                         quaternions=model.geom_quat[ids].copy(), geoms=names)
 
 
-def geom_shape(model, geom_id):
-    """The :class:`~mjccd.fitting.Shape` of a supported geom, in its body's frame."""
+def geom_shape(model, geom_id, *, hull=False):
+    """The :class:`~mjccd.fitting.Shape` of a supported geom, in its body's frame.
+
+    A mesh is its vertices and faces, or with ``hull`` the vertices and faces
+    of the convex hull MuJoCo collides it by (:func:`mesh_hull`).
+    """
     gtype = int(model.geom_type[geom_id])
     if gtype not in SUPPORTED:
         raise ValueError(f"geom {geom_id}: type {gtype} is not supported")
@@ -234,10 +239,48 @@ def geom_shape(model, geom_id):
     if gtype != mujoco.mjtGeom.mjGEOM_MESH:
         return Shape(SUPPORTED[gtype], model.geom_size[geom_id].copy(), position, rotation)
     mesh = int(model.geom_dataid[geom_id])
+    if hull:
+        vertices, faces = mesh_hull(model, mesh)
+        return Shape("mesh", model.geom_size[geom_id].copy(), position, rotation, vertices=vertices, faces=faces)
     vert, face = model.mesh_vertadr[mesh], model.mesh_faceadr[mesh]
     return Shape("mesh", model.geom_size[geom_id].copy(), position, rotation,
                  vertices=model.mesh_vert[vert:vert + model.mesh_vertnum[mesh]].astype(float),
                  faces=model.mesh_face[face:face + model.mesh_facenum[mesh]])
+
+
+def mesh_hull(model, mesh_id):
+    """``(vertices (k, 3), faces (m, 3))`` of the convex hull of a mesh, in the mesh's frame.
+
+    The hull MuJoCo computes (qhull) and collides the mesh by: the model's own
+    convex graph when it has one, else that of a one-geom model compiled
+    from the mesh's vertices (MuJoCo builds no hull for a mesh that only
+    visual geoms use).  ``faces`` index ``vertices``, outward by the right-hand rule.
+    """
+    mesh_id = int(mesh_id)
+    start, count = model.mesh_vertadr[mesh_id], model.mesh_vertnum[mesh_id]
+    vertices = model.mesh_vert[start:start + count].astype(float)
+    adr = int(model.mesh_graphadr[mesh_id])
+    graph = model.mesh_graph[adr:] if adr >= 0 else _hull_graph(model, mesh_id, vertices)
+    nvert, nface = int(graph[0]), int(graph[1])
+    first = 2 + 3 * nvert + 3 * nface  # numvert, numface, vert_edgeadr, vert_globalid, edge_localid, face_globalid
+    faces = np.asarray(graph[first:first + 3 * nface], dtype=np.int64).reshape(nface, 3)
+    used = np.unique(faces)
+    return vertices[used], np.searchsorted(used, faces)
+
+
+def _hull_graph(model, mesh_id, vertices):
+    """MuJoCo's convex graph of a mesh with these vertices (vertex order kept), from a one-geom model."""
+    spec = mujoco.MjSpec()
+    spec.add_mesh(name="hull", uservert=vertices.ravel().tolist())
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="hull")
+    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MESH, mesh_id) or f"#{mesh_id}"
+    try:
+        hull = spec.compile()
+    except ValueError as exc:
+        raise ValueError(f"mesh {name!r}: MuJoCo cannot build its convex hull: {' '.join(str(exc).split())}") from None
+    if hull.mesh_vertnum[0] != len(vertices) or hull.mesh_graphadr[0] < 0:
+        raise ValueError(f"mesh {name!r}: MuJoCo built no convex hull of its {len(vertices)} vertices")
+    return hull.mesh_graph[hull.mesh_graphadr[0]:]
 
 
 def collision_geoms(model, body_id, *, include_visual=False):
@@ -247,36 +290,67 @@ def collision_geoms(model, body_id, *, include_visual=False):
     return [g for g in ids if include_visual or (model.geom_contype[g] | model.geom_conaffinity[g])]
 
 
-def fit_model(model, *, per="body", bodies=None, include_visual=False):
+def _geom_label(model, geom_id):
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(geom_id)) or f"#{int(geom_id)}"
+
+
+def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=False,
+              max_ellipsoids=MAX_ELLIPSOIDS):
     """Bounding ellipsoids of a compiled model as an :class:`EllipsoidSet`.
+
+    Two fits:
+
+    * ``tolerance=None`` (the default): one ellipsoid per body (``per="body"``)
+      or per geom (``per="geom"``), the minimum-volume one with proven
+      containment.  Simple and few, but loose: a box gets ``sqrt(3)`` times
+      its half sizes, a limb capsule's ends 7-8 cm more.
+    * ``tolerance=t`` (a length, e.g. :data:`mjccd.fitting.DEFAULT_TOLERANCE`,
+      0.01 m, which ``mjccd fit`` uses): each geom is covered by the fewest
+      ellipsoids that keep every point of them within ``t`` of the geom
+      (:func:`mjccd.fitting.cover_shape`; a mesh is its convex hull, as
+      MuJoCo collides it).  With ``per="body"`` a body's geoms share one
+      ellipsoid when that one is proven to stay within ``t`` of them
+      (:func:`mjccd.fitting.within_tolerance`), e.g. a finger of two small
+      capsules; with ``per="geom"`` every geom gets its own cover.
+
+    Every point of every bounded geom lies inside the union of the ellipsoids
+    in both fits.
 
     Args:
         model: ``mujoco.MjModel``.
-        per: "body" (one ellipsoid per body) or "geom" (one per geom).
+        tolerance: None, or the most a point of an ellipsoid may lie from its geometry (model units, > 0).
+        per: "body" or "geom" (see above).
         bodies: body names or ids to fit; default every body with supported collision geometry.
         include_visual: also bound geoms with ``contype = conaffinity = 0``.
+        max_ellipsoids: with a tolerance, refuse a geom that needs more ellipsoids than this.
 
     Planes, height fields and SDF geoms are unbounded or implicit: they are
-    skipped (and a body that has nothing else is left out).  ``volume_ratios``
-    compare with the sum of the geoms' volumes (overlaps counted twice).
+    skipped (and a body that has nothing else is left out).  ``geoms`` names
+    the geom an ellipsoid bounds ("" for a whole body); ``volume_ratios``
+    compare an ellipsoid with the summed volume of the geometry it bounds
+    (its geom for a piece of a cover, so a cover's ratios add up; overlaps
+    counted twice); :func:`fit_report` measures the union per body.
     """
     if not isinstance(model, mujoco.MjModel):
         raise ValueError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
     if per not in ("body", "geom"):
         raise ValueError(f"per: expected 'body' or 'geom', got {per!r}")
+    if tolerance is not None:
+        valid = isinstance(tolerance, (int, float, np.integer, np.floating)) and not isinstance(tolerance, bool)
+        if not valid or not (np.isfinite(tolerance) and tolerance > 0):
+            raise ValueError(f"tolerance: expected None or a positive length, got {tolerance!r}")
     explicit = bodies is not None
     body_ids = _resolve_bodies(model, bodies) if explicit else range(model.nbody)
     out = {"bodies": [], "geoms": [], "radii": [], "positions": [], "quaternions": [], "volume_ratios": []}
 
-    def emit(body_id, geom_name, shapes):
-        c, R, r = fit_shapes(shapes)
-        volume = sum(shape.volume() for shape in shapes)
-        out["bodies"].append(body_label(model, body_id))
-        out["geoms"].append(geom_name)
-        out["radii"].append(r)
-        out["positions"].append(c)
-        out["quaternions"].append(matrix_to_quat(R))
-        out["volume_ratios"].append(4.0 / 3.0 * np.pi * np.prod(r) / volume if volume > 0 else np.nan)
+    def emit(body_id, geom_name, ellipsoids, volume):
+        for c, R, r in ellipsoids:
+            out["bodies"].append(body_label(model, body_id))
+            out["geoms"].append(geom_name)
+            out["radii"].append(r)
+            out["positions"].append(c)
+            out["quaternions"].append(matrix_to_quat(R))
+            out["volume_ratios"].append(4.0 / 3.0 * np.pi * np.prod(r) / volume if volume > 0 else np.nan)
 
     for b in body_ids:
         geoms = collision_geoms(model, b, include_visual=include_visual)
@@ -291,19 +365,103 @@ def fit_model(model, *, per="body", bodies=None, include_visual=False):
                 kinds = sorted({mujoco.mjtGeom(int(model.geom_type[g])).name for g in geoms})
                 raise ValueError(f"bodies: body {label!r} has only unsupported geoms ({', '.join(kinds)})")
             continue
-        if per == "geom":
-            for g in usable:
-                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
-                emit(b, name, [geom_shape(model, g)])
-        else:
-            try:
-                emit(b, "", [geom_shape(model, g) for g in usable])
-            except ValueError as exc:
-                raise ValueError(f"body {label!r}: {exc}") from None
+        try:
+            if tolerance is not None:
+                _cover_body(model, b, usable, tolerance, per, max_ellipsoids, emit)
+            elif per == "geom":
+                for g in usable:
+                    shape = geom_shape(model, g)
+                    emit(b, _geom_label(model, g), [fit_shapes([shape])], shape.volume())
+            else:
+                shapes = [geom_shape(model, g) for g in usable]
+                emit(b, "", [fit_shapes(shapes)], sum(shape.volume() for shape in shapes))
+        except ValueError as exc:
+            raise ValueError(f"body {label!r}: {exc}") from None
     if not out["bodies"]:
         raise ValueError("model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh "
                          "collision geometry")
     return EllipsoidSet(**out)
+
+
+def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit):
+    """Emit a body's ellipsoids to a tolerance: one for all its geoms when that is proven close enough, else covers."""
+    shapes = [geom_shape(model, g, hull=True) for g in geoms]
+    if per == "body" and len(shapes) > 1:
+        whole = fit_shapes(shapes)
+        if within_tolerance(*whole, shapes, tolerance):
+            emit(body_id, "", [whole], sum(shape.volume() for shape in shapes))
+            return
+    for g, shape in zip(geoms, shapes):
+        try:
+            cover = cover_shape(shape, tolerance, max_ellipsoids=max_ellipsoids)
+        except ValueError as exc:
+            raise ValueError(f"geom {_geom_label(model, g)!r}: {exc}") from None
+        emit(body_id, _geom_label(model, g), cover, shape.volume())
+
+
+@dataclass(frozen=True)
+class BodyReport:
+    """How tightly a body's ellipsoids bound its geometry (:func:`fit_report`).
+
+    Attributes:
+        body: body label, as in :attr:`EllipsoidSet.bodies`.
+        ellipsoids: how many ellipsoids the body has.
+        overshoot: the farthest a point of them lies from the body's geometry (model units), measured.
+        volume_ratio: volume of their union over volume of the geometry's union (overlaps counted once).
+    """
+
+    body: str
+    ellipsoids: int
+    overshoot: float
+    volume_ratio: float
+
+
+def fit_report(model, ellipsoids, *, include_visual=False, surface_samples=SURFACE_SAMPLES,
+               volume_samples=VOLUME_SAMPLES):
+    """Per body: ellipsoid count, measured overshoot and union volume ratio, as a tuple of :class:`BodyReport`.
+
+    A body's geometry is the union of its supported geoms that take part in
+    collisions (all of them with ``include_visual``) and of any geom an
+    ellipsoid names, unless that geom is itself a bound (a visual-only
+    ellipsoid in group :data:`BOUND_GROUP`, as :func:`geom_ellipsoids`
+    reads); a mesh is its convex hull.  The measurements are
+    :func:`mjccd.fitting.cover_report`'s: the overshoot is the largest exact
+    distance (closed forms; for a mesh, the distance to its hull's faces)
+    from ``surface_samples`` points on each ellipsoid's surface, refined by
+    local ascent, and from the Halton points inside them, to the geometry;
+    the volume ratio counts ``volume_samples`` Halton points in the box
+    around the body's ellipsoids.  Bodies come in the order of the set.
+    """
+    if not isinstance(ellipsoids, EllipsoidSet):
+        raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
+    ids = ellipsoids.body_ids(model)
+    geom_ids = {_geom_label(model, g): g for g in range(model.ngeom)}
+    reports = []
+    for label in dict.fromkeys(ellipsoids.bodies):
+        rows = [k for k, b in enumerate(ellipsoids.bodies) if b == label]
+        b = int(ids[rows[0]])
+        geoms = [g for g in collision_geoms(model, b, include_visual=include_visual)
+                 if int(model.geom_type[g]) in SUPPORTED]
+        for k in rows:
+            g = geom_ids.get(ellipsoids.geoms[k])
+            if g is not None and int(model.geom_bodyid[g]) == b and g not in geoms and not _is_bound(model, g):
+                geoms.append(g)
+        if not geoms:
+            raise InputError(f"ellipsoids: body {label!r} has no supported geometry to compare its ellipsoids with")
+        shapes = [geom_shape(model, g, hull=True) for g in geoms]
+        bounds = [(ellipsoids.positions[k], quat_to_matrix(ellipsoids.quaternions[k]), ellipsoids.radii[k])
+                  for k in rows]
+        overshoot, ratio = cover_report(bounds, shapes, surface_samples=surface_samples,
+                                        volume_samples=volume_samples)
+        reports.append(BodyReport(label, len(rows), overshoot, ratio))
+    return tuple(reports)
+
+
+def _is_bound(model, geom_id):
+    """Whether a geom looks like a fitted bound: a visual-only ellipsoid in :data:`BOUND_GROUP`."""
+    return (int(model.geom_type[geom_id]) == mujoco.mjtGeom.mjGEOM_ELLIPSOID
+            and int(model.geom_group[geom_id]) == BOUND_GROUP
+            and not model.geom_contype[geom_id] | model.geom_conaffinity[geom_id])
 
 
 def _resolve_bodies(model, bodies):

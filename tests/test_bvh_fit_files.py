@@ -132,7 +132,7 @@ def test_fit_refuses_to_overwrite_without_force(tmp_path, arm, capsys):
     code, err = _run(capsys, "fit", arm, "-o", arm, "-q")
     assert code == 2 and f"{arm}: is an input of this command" in err
     assert arm.read_text() == good_model(tmp_path)
-    code, _ = _run(capsys, "fit", arm, "-o", out, "-q", "--force")
+    code, _ = _run(capsys, "fit", arm, "-o", out, "-q", "--force", "--tolerance", "none")
     assert code == 0
     assert _ellipsoid_geoms(mujoco.MjModel.from_xml_path(str(out))) == ["mjccd_ellipsoid_0"]
     assert load_ellipsoids(tmp_path / "out.ellipsoids.json").bodies == ("obstacle",)
@@ -140,9 +140,10 @@ def test_fit_refuses_to_overwrite_without_force(tmp_path, arm, capsys):
 
 def test_fit_of_its_own_output_replaces_the_ellipsoids(tmp_path, arm, capsys):
     first = tmp_path / "first.ellipsoids.json"
-    assert _run(capsys, "fit", arm, "-o", arm, "--ellipsoids", first, "--force", "-q")[0] == 0
+    one = ("--tolerance", "none")  # one ellipsoid per body: the refit replaces exactly that one
+    assert _run(capsys, "fit", arm, "-o", arm, "--ellipsoids", first, "--force", "-q", *one)[0] == 0
     again = tmp_path / "again.ellipsoids.json"
-    code, err = _run(capsys, "fit", arm, "-o", arm, "--ellipsoids", again, "--force", "-q")
+    code, err = _run(capsys, "fit", arm, "-o", arm, "--ellipsoids", again, "--force", "-q", *one)
     assert code == 0, err
     assert _ellipsoid_geoms(mujoco.MjModel.from_xml_path(str(arm))) == ["mjccd_ellipsoid_0"]
     np.testing.assert_array_equal(load_ellipsoids(again).radii, load_ellipsoids(first).radii)
@@ -151,7 +152,7 @@ def test_fit_of_its_own_output_replaces_the_ellipsoids(tmp_path, arm, capsys):
     original.write_text(good_model(tmp_path))
     for model, name in ((original, "o.json"), (arm, "a.json")):
         assert _run(capsys, "fit", model, "--ellipsoids", tmp_path / name, "--include-visual", "--per", "geom",
-                    "--bodies", "obstacle", "-q")[0] == 0
+                    "--bodies", "obstacle", "-q", *one)[0] == 0
     refit, fit = load_ellipsoids(tmp_path / "a.json"), load_ellipsoids(tmp_path / "o.json")
     assert refit.geoms == fit.geoms and "mjccd_ellipsoid_0" not in refit.geoms
     np.testing.assert_allclose(refit.radii, fit.radii, rtol=1e-5)  # MjSpec.to_xml keeps 6 digits
@@ -174,7 +175,7 @@ def test_fit_output_in_another_folder_finds_the_meshes(tmp_path, capsys):
     out = tmp_path / "sub" / "arm_fit.xml"
     out.parent.mkdir()
     code, err = _run(capsys, "fit", MODELS / "arm_obstacle.xml", "-o", out, "--include-visual",
-                     "--bodies", "obstacle", "-q")
+                     "--bodies", "obstacle", "-q", "--tolerance", "none")
     assert code == 0, err
     assert _ellipsoid_geoms(mujoco.MjModel.from_xml_path(str(out))) == ["mjccd_ellipsoid_0"]
 

@@ -304,36 +304,36 @@ class StepCheck:
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
 
-    def end(self, data):
-        """Record the state at the end of the step begun last (its poses: :attr:`poses`)."""
+    def _record_end(self, data):
+        """Record the state of ``data`` as the end of the step begun last: the index of the slot whose poses
+        are still to be computed from its kinematics, or None when it is the start state (poses known)."""
         state = self._state_of(data)
         kb = state.tobytes()
-        slots = self._slots
         start = self._start
-        if slots[start][1] == kb:
+        if self._slots[start][1] == kb:
             self._end = start
-            return
+            return None
         idx = 1 - start
-        kd = self._fill(idx, kb, state)
+        self._fill(idx, kb, state)
         self._end = idx
-        ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
+        return idx
+
+    def end(self, data):
+        """Record the state at the end of the step begun last (its poses: :attr:`poses`)."""
+        idx = self._record_end(data)
+        if idx is not None:
+            xpos, xquat = self._xposes[idx]
+            ellipsoid_poses_into(xpos, xquat, self.body_ids, self.positions, self.quaternions, self._slots[idx][2])
 
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call
         when the end state is new)."""
-        state = self._state_of(data)
-        kb = state.tobytes()
-        slots = self._slots
-        start = self._start
-        if slots[start][1] == kb:
-            self._end = start
+        idx = self._record_end(data)
+        if idx is None:
             return self.may_touch()
-        idx = 1 - start
-        self._fill(idx, kb, state)
-        self._end = idx
         xpos, xquat = self._xposes[idx]
-        return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, slots[start][2], slots[idx][2],
-                                    self._workspace)
+        return poses_then_may_touch(xpos, xquat, self.body_ids, self._local, self._slots[self._start][2],
+                                    self._slots[idx][2], self._workspace)
 
     @property
     def poses(self):

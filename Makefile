@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.mjccd-installed
 MUJOCO3 ?= mujoco>=3.17,<4
 MUJOCO4 ?= mujoco==4.0.0
 
-.PHONY: demo test test-mujoco4 bench bench-quick tunneling clean
+.PHONY: demo test test-mujoco4 warmup bench bench-quick tunneling clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -15,11 +15,18 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e ".[test]" "$(MUJOCO3)"
 	touch $(STAMP)
 
+# the first run compiles the kernels the replay needs (one to two minutes of CPU on 2 cores, with a note on
+# stderr); numba caches them next to the sources, so later runs start at once
 demo: $(STAMP)
 	$(VENV)/bin/mjccd replay models/boxing.xml data/boxing_traj.npz --out replay-out --force
 
+# no warmup first: the suite compiles the same kernels as it goes (the CPU is the same either way)
 test: $(STAMP)
 	$(PY) -m pytest
+
+# compile every kernel a user may need (solver, scene, replay, monitor and guard, fit, patches), one line per job
+warmup: $(STAMP)
+	$(VENV)/bin/mjccd warmup
 
 # the suite on MuJoCo 4 in an environment of its own; dm-control's tests skip there with the reason.
 # PYTEST4="-m mujoco" runs only the MuJoCo-facing files (fit, monitor, guard, replay, scene, testing, examples;

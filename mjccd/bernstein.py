@@ -18,7 +18,9 @@ import math
 import numba
 import numpy as np
 
-_jit = numba.njit(cache=True, nogil=True)
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 
 
 # ---------------------------------------------------------------- binomials
@@ -267,8 +269,8 @@ def _hull_crossing(c, stack):
     axis.  ``stack`` is scratch of length n + 1.
     """
     n = c.shape[0] - 1
-    lo, hi = _chain_crossings(c, False, stack, 2.0 * n, -1.0)
-    lo, hi = _chain_crossings(c, True, stack, lo, hi)
+    lo, hi = _chain_crossings(c, np.bool_(False), stack, 2.0 * n, -1.0)
+    lo, hi = _chain_crossings(c, np.bool_(True), stack, lo, hi)
     if hi < 0.0:
         return 2.0, -1.0
     return lo / n, hi / n

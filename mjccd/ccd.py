@@ -36,8 +36,14 @@ from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, centre_extent, gam
                           quadric_at, rigid_scaled_into, translation_scaled_into)
 from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_max5, quat_to_matrix, touching_point
 
-_jit = numba.njit(cache=True, nogil=True)
-_inline = numba.njit(cache=True, nogil=True, inline="always")  # small hot-path helpers
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles.  A literal argument
+# (0, 1, True) compiles a kernel once per value: call sites pass np.intp(0), np.bool_(True) instead
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# a kernel with one call site in compiled code is typed inside its caller (numba IR inlining): no library of its
+# own, which LLVM would optimise and compile again with all its callees (docs/benchmarks.md, "First use");
+# also the two tiny heap helpers
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False, inline="always")
 
 SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is accepted
 THIN = 8.0               # a body whose largest radius exceeds its smallest this many times is thin
@@ -201,13 +207,13 @@ _ADJUGATE_TERMS = ((0, 0, 1, 1, 2, 2, 1, 2, 1, 2), (1, 1, 0, 0, 2, 2, 0, 2, 0, 2
                    (0, 1, 0, 2, 1, 2, 0, 1, 2, 2), (0, 2, 0, 1, 1, 2, 0, 2, 1, 1), (1, 2, 0, 1, 0, 2, 0, 0, 1, 2))
 
 
-@_jit
+@_inline
 def F_from_pencil(Pp, Up, sp):
     """Bernstein coefficients (5, n+1) of F(u, t) = det((1 - u) A(t) + u B(t)) from the scaled pencil."""
     return _pencil_determinant(Pp, Up, sp, -1.0)
 
 
-@_jit
+@_inline
 def F_abs_from_pencil(Pp, Up, sp):
     """The same computation on |entries| with every difference turned into a sum.
 
@@ -370,7 +376,7 @@ def error_bound_global(F, Pp, Up, sp, D, M):
     return np.full(F.shape, value)
 
 
-@_jit
+@_inline
 def error_bound_tight(F, Pp, Up, sp, D):
     """E coefficient by coefficient: F_abs of the entries widened by their error bounds, minus F_abs."""
     p = Pp.shape[3] - 1
@@ -408,8 +414,9 @@ def _rows_at(F, t):
         end = 0 if t == 0.0 else n
         return F[0, end], F[1, end], F[2, end], F[3, end], F[4, end]
     if n > bz.TABLED_DEGREE:
-        return (bz.evaluate_row(F, 0, t), bz.evaluate_row(F, 1, t), bz.evaluate_row(F, 2, t),
-                bz.evaluate_row(F, 3, t), bz.evaluate_row(F, 4, t))
+        return (bz.evaluate_row(F, np.intp(0), t), bz.evaluate_row(F, np.intp(1), t),
+                bz.evaluate_row(F, np.intp(2), t), bz.evaluate_row(F, np.intp(3), t),
+                bz.evaluate_row(F, np.intp(4), t))
     flip = t > 0.5
     s = (1.0 - t) / t if flip else t / (1.0 - t)
     end = 0 if flip else n
@@ -578,7 +585,7 @@ def _entry_estimate(F, E, t_c, lower, t_max):
     return t_c, upper
 
 
-@_jit
+@_inline
 def _tighter_upper(F, E, t, upper):
     """A proven-overlapping time closer to the estimate t than ``upper`` (which is proven overlapping), when
     the bracket is too wide for TIME_TOL: bisection on the overlapping status down towards t."""
@@ -621,7 +628,7 @@ def _zero_of_state(F, lo, hi, gmax, slope, h):
         t += step
         if step <= 4.0 * EPS * t:
             return t
-    return _bisect_sign(F, lo, hi, False)
+    return _bisect_sign(F, lo, hi, np.bool_(False))
 
 
 # ---------------------------------------------------------------- end of an overlap
@@ -738,7 +745,7 @@ def _march_exit(F, t_start, t_end):
         tb = min(a + EXIT_BOX_TOL, t_end)
         gmax, _ = state(F, tb)
         if gmax >= 0.0:
-            return _bisect_sign(F, a, tb, True), tb
+            return _bisect_sign(F, a, tb, np.bool_(True)), tb
         return -1.0, a
     return -1.0, a
 
@@ -933,7 +940,7 @@ def _exit_box_search(F, t_start, t_end, capacity, max_pops):
         if width <= EXIT_BOX_TOL:
             gmax, _ = state(F, t1)
             if gmax >= 0.0:
-                return _bisect_sign(F, t0, t1, True), True, peak
+                return _bisect_sign(F, t0, t1, np.bool_(True)), True, peak
             free[nfree] = s
             nfree += 1
             continue
@@ -972,7 +979,7 @@ def _exit_box_search(F, t_start, t_end, capacity, max_pops):
     return 2.0, True, peak
 
 
-@_jit
+@_inline
 def _search_exit_pool(F, E, t_start, t_end, capacity, max_pops):
     """:func:`search_exit` with the pool's capacity and the pop limit as arguments: (t, certified, peak live boxes).
 
@@ -986,7 +993,7 @@ def _search_exit_pool(F, E, t_start, t_end, capacity, max_pops):
     return _exit_box_search(upper, reached, t_end, capacity, max_pops)
 
 
-@_jit
+@_inline
 def search_exit(F, E, t_start, t_end):
     """End of the overlap that holds at t_start, within [t_start, t_end]: (t, certified).
 
@@ -1008,7 +1015,7 @@ def search_exit(F, E, t_start, t_end):
     return t, certified
 
 
-@_jit
+@_inline
 def _step_off(F, E, t, t_end):
     """Status just after a contact instant t: the first decided probe t + 1e-13 * 2^k.
 
@@ -1030,7 +1037,7 @@ def _step_off(F, E, t, t_end):
         eps *= 2.0
 
 
-@_jit
+@_inline
 def _end_of_touch(F, E, lo, hi):
     """Last touching time between ``lo`` (touching) and ``hi`` (separate): bisection on the decided status."""
     emax = E.max()
@@ -1046,7 +1053,7 @@ def _end_of_touch(F, E, lo, hi):
     return lo
 
 
-@_jit
+@_inline
 def _leave_contact(F, E, t_in, t_max):
     """From a contact instant t_in: (t_out, out_lo, out_hi, t_sep, limited).
 
@@ -1065,7 +1072,7 @@ def _leave_contact(F, E, t_in, t_max):
             if last - t_out > TOUCH_SPAN:  # touching for longer than a graze: up to somewhere in (last, probe)
                 t_out = _end_of_touch(F, E, last, probe)
             elif state(F, t_out)[0] < 0.0:  # the zero of the computed State before the separate probe
-                t_out = _bisect_sign(F, t_out, probe, True)
+                t_out = _bisect_sign(F, t_out, probe, np.bool_(True))
             return t_out, lower, probe, probe, False
         if code == 0:
             return t_max, t_max, t_max, t_max, False
@@ -1317,8 +1324,8 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     zero = np.zeros(3)
     if translating:  # both only translate (orientation q0): F of degree 2
         Pp, Up, sp = empty_pencil(0, 1, 2)
-        translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, 0)
-        translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, 1)
+        translation_scaled_into(ra, pa0, qa0, pa1, pa0, pa1, length, Pp, Up, sp, np.intp(0))
+        translation_scaled_into(rb, pb0, qb0, pb1, pa0, pa1, length, Pp, Up, sp, np.intp(1))
     elif affine_a and affine_b:
         Pp, Up, sp = empty_pencil(1, 2, 3)
         pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
@@ -1329,21 +1336,22 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
         if affine_a:
             pencil_side_into(*quadric_affine(ra / length, zero, qa0, zero, qa1), Pp, Up, sp, 0)
         else:
-            rigid_scaled_into(ra, pa0, qa0, pa1, qa1, pa0, pa1, length, Pp, Up, sp, 0)
+            rigid_scaled_into(ra, pa0, qa0, pa1, qa1, pa0, pa1, length, Pp, Up, sp, np.intp(0))
         if affine_b:
             pencil_side_into(*quadric_affine(rb / length, (pb0 - pa0) / length, qb0, (pb1 - pa1) / length, qb1),
                              Pp, Up, sp, 1)
         else:
-            rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, 1)
+            rigid_scaled_into(rb, pb0, qb0, pb1, qb1, pa0, pa1, length, Pp, Up, sp, np.intp(1))
     err = np.empty((2, 4, 4))
     pose_side_errors(ra, length, 0.0, translating and framed, err[0])
-    pose_side_errors(rb, length, centre_extent(pb0, pb1, pa0, pa1, length), False, err[1])
+    pose_side_errors(rb, length, centre_extent(pb0, pb1, pa0, pa1, length), np.bool_(False), err[1])
     status0, intervals, bounds, u, reached, tier = solve_balanced(Pp, Up, sp, err, t_max, first_only)
     point = np.zeros(3)
     normal = np.zeros(3)
     if status0 == 1 and intervals.shape[0] > 0:
         t = intervals[0, 0]
-        p, n = touching_point(pencil_quadric_at(Pp, Up, sp, 0, t), pencil_quadric_at(Pp, Up, sp, 1, t), u)
+        p, n = touching_point(pencil_quadric_at(Pp, Up, sp, np.intp(0), t),
+                              pencil_quadric_at(Pp, Up, sp, np.intp(1), t), u)
         for m in range(3):
             point[m] = (1.0 - t) * pa0[m] + t * pa1[m] + length * p[m]
         if framed:  # back from A's frame at t = 0
@@ -1358,20 +1366,20 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     return status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi
 
 
-@_jit
+@_inline
 def balanced_F(Pp, Up, sp, err):
     """Balance the pencil in place and build F: (F, D, M), D the 4x4 bounds of the balanced entries' errors
     (``err`` (2, 4, 4): each side's before balancing) and M their coefficient maxima, for
     :func:`error_bound_global` or :func:`error_bound_tight`."""
     inv = np.empty(2)
-    inv[0] = balance_side(Pp, Up, sp, 0)
-    inv[1] = balance_side(Pp, Up, sp, 1)
+    inv[0] = balance_side(Pp, Up, sp, np.intp(0))
+    inv[1] = balance_side(Pp, Up, sp, np.intp(1))
     M = _entry_maxima(Pp, Up, sp)
     D = entry_errors_balanced(err, inv, M)
     return F_from_pencil(Pp, Up, sp), D, M
 
 
-@_jit
+@_inline
 def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     """Balance the pencil, build F and solve it: first with the cheap constant error bound, again with the
     coefficient-wise one when that leaves a bracket wider than TIME_TOL.  See :func:`solve_intervals`.
@@ -1390,7 +1398,7 @@ def solve_balanced(Pp, Up, sp, err, t_max, first_only):
     return status0, intervals, bounds, u, reached, DOUBLE_TIGHT
 
 
-@_jit
+@_inline
 def exact_pair(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """:func:`two_pose_pair` with one motion model for both bodies (``affine``), as a scene uses it:
     (status at start, intervals, point, normal, certified, bracket_lo, bracket_hi), see :func:`verdict`."""

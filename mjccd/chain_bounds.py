@@ -57,8 +57,13 @@ import numba
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import static_status_pose
 
-_jit = numba.njit(cache=True, nogil=True)
-_inline = numba.njit(cache=True, nogil=True, inline="always")
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# hot-path helpers: compiled once, then inlined by LLVM into each caller (no call, no reference counting of
+# array arguments); inline="always" copied their numba IR into every caller instead, which multiplied
+# compile time (docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
 FIXED, HINGE, SLIDE, BALL, FREE = range(5)  # element kinds of a chain program
 JOINT_WIDTH = (0, 1, 1, 4, 7)   # joint values each kind reads: angle, displacement, quaternion, position + quaternion

@@ -77,6 +77,7 @@ DELEGATED = {
     "fit": ("mjccd.fit", "fit bounding ellipsoids to a MuJoCo model's bodies"),
     "import-bvh": ("mjccd.bvh", "convert a BVH motion-capture clip to an MJCF skeleton and qpos"),
     "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
+    "warmup": ("mjccd.warmup", "compile every kernel now (numba caches them), one line per job"),
 }
 BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monitor": "mjccd.bench.monitor",
                 "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity"}

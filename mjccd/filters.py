@@ -41,10 +41,13 @@ from mjccd import bernstein as bz
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
 
-_jit = numba.njit(cache=True, nogil=True)
-# the small kernels of the per-pair hot path are inlined into their callers: a call with array
-# arguments costs reference counting per array, more than the arithmetic of these kernels
-_inline = numba.njit(cache=True, nogil=True, inline="always")
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# hot-path helpers: compiled once, then inlined by LLVM into each caller (no call, no reference counting of
+# array arguments); inline="always" copied their numba IR into every caller instead, which multiplied
+# compile time (docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
 EPS = 2.220446049250313e-16
 SPHERE_INFLATE = 1e-9        # relative growth of the summed radii: rounding never hides an entry

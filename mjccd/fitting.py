@@ -241,7 +241,7 @@ def _ellipsoid_distance(local, radii):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def _point_triangle_d2(p, a, b, c):
     """Squared distance from p to the triangle abc (Ericson, Real-Time Collision Detection, 5.1.5)."""
     ab, ac, ap = b - a, c - a, p - a
@@ -271,7 +271,7 @@ def _point_triangle_d2(p, a, b, c):
     return e @ e
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def _hull_distance(points, a, b, c, normals, offsets):
     """Distance (n,) from points to a convex polytope given by its faces (triangles a, b, c; outward planes).
 
@@ -334,7 +334,7 @@ def _farthest_point(centre, rotation, radii, atom):
 # ---------------------------------------------------------------- minimum-volume ellipsoid of points
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def _khachiyan_weights(P, u, tolerance, max_iterations):
     """Weights u of the points P (n, 3) whose moment ellipsoid is the minimum-volume one, improved in place.
 
@@ -426,7 +426,7 @@ def ball_max_bound(a, B):
     return _trust_region(np.asarray(a, dtype=float), np.ascontiguousarray(B, dtype=float))[0]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def _trust_region(a, B):
     """``(bound, u)``: an upper bound of ``max_{|u| <= 1} |a + B u|^2``, tight up to rounding, and its maximiser.
 

@@ -26,7 +26,9 @@ from mjccd import bernstein as bz
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import quat_to_matrix
 
-_jit = numba.njit(cache=True, nogil=True)
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 EPS = 2.220446049250313e-16
 
 
@@ -260,7 +262,7 @@ def quadric_rigid(radii, p0, q0, p1, q1):
     P = np.empty((3, 3, 1, 5))
     U = np.empty((3, 1, 6))
     s = np.empty((1, 7))
-    rigid_scaled_into(radii, p0, q0, p1, q1, np.zeros(3), np.zeros(3), 1.0, P, U, s, 0)
+    rigid_scaled_into(radii, p0, q0, p1, q1, np.zeros(3), np.zeros(3), 1.0, P, U, s, np.intp(0))
     b4 = bz.binomial_row(4)
     b5 = bz.binomial_row(5)
     b6 = bz.binomial_row(6)

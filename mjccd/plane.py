@@ -59,8 +59,13 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.motion import EPS, Affine, Motion, Rigid, Static, gamma
 from mjccd.quadric import STATUS_NAMES, Ellipsoid
 
-_jit = numba.njit(cache=True, nogil=True)
-_inline = numba.njit(cache=True, nogil=True, inline="always")  # small helpers of the per-pair hot path
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# hot-path helpers: compiled once, then inlined by LLVM into each caller (no call, no reference counting of
+# array arguments); inline="always" copied their numba IR into every caller instead, which multiplied
+# compile time (docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
 LEAF = 2.0 ** -44           # width below which an undecided piece of time is left undecided
 MAX_NODES = 4096            # pieces examined per scan; past it the rest of the scan is left undecided

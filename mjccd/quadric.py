@@ -30,8 +30,13 @@ import numpy as np
 from mjccd import _validate, exact
 from mjccd.errors import InputError
 
-_jit = numba.njit(cache=True, nogil=True)
-_inline = numba.njit(cache=True, nogil=True, inline="always")  # small hot-path helpers
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# hot-path helpers: compiled once, then inlined by LLVM into each caller (no call, no reference counting of
+# array arguments); inline="always" copied their numba IR into every caller instead, which multiplied
+# compile time (docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
 SEPARATE = 1
 TOUCHING = 0

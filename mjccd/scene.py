@@ -58,8 +58,13 @@ from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, p
 from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
 from mjccd.sorting import sort_by_key
 
-_jit = numba.njit(cache=True, nogil=True)
-_inline = numba.njit(cache=True, nogil=True, inline="always")  # hot-path helpers: no call overhead
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# hot-path helpers: compiled once, then inlined by LLVM into each caller (no call, no reference counting of
+# array arguments); inline="always" copied their numba IR into every caller instead, which multiplied
+# compile time (docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
 # outcome codes of a pair in one frame
 SPHERE, CACHED_PLANE, NEW_PLANE, OVERLAP_T0, EXACT_FREE, EXACT_HIT, PRUNED, UNCERTAIN, TOO_SLOW = range(9)
@@ -98,7 +103,7 @@ def _borrow(typingctx, arr):
     return arr(arr), codegen
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def read_ticks():
     """The cycle counter, readable from Python (to calibrate :class:`RunResult` ticks)."""
     return _ticks()

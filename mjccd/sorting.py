@@ -2,7 +2,7 @@
 import numba
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def sort_by_key(order, m, key):
     """Stable insertion sort of the indices ``order[:m]`` by ``key[order[.]]``, ascending (m is small)."""
     for a in range(1, m):

@@ -8,9 +8,13 @@ that sees this environment's packages through a ``.pth`` file (no second downloa
 numpy, numba or mujoco); each ``mjccd bench <suite> --quick`` then runs from an empty
 folder outside the repository.  The numba caches of this checkout are copied next to the
 installed copies of the same sources, so the kernels load instead of compiling for
-minutes (a fresh install compiles them on first use: about 6 minutes for the four suites
-on a busy 2-core machine).
+minutes (a fresh install compiles them on first use: docs/benchmarks.md, "First use").
+
+The first-use tests at the end check where numba's cache goes (next to the sources, or the
+user's cache folder for a read-only install, never over the user's own ``NUMBA_CACHE_DIR``),
+the compile notice and ``mjccd warmup``.
 """
+import io
 import os
 import shutil
 import subprocess
@@ -156,3 +160,227 @@ def test_packaged_trajectory_is_the_head_of_the_repository_one():
         assert sorted(head.files) == sorted(whole.files)
         for name in head.files:
             np.testing.assert_array_equal(head[name], whole[name][:150])
+
+
+# ---------------------------------------------------------------- first use: cache folder, compile notice, warmup
+
+
+def _package(root):
+    """A package folder laid out as mjccd's (a subpackage with kernels), for mjccd._cache's folder choice."""
+    pkg = root / "mjccd"
+    (pkg / "mujoco").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "mujoco" / "__init__.py").write_text("")
+    return pkg
+
+
+def _read_only(monkeypatch, pkg):
+    """os.access as on a read-only install: nothing under ``pkg`` is writable (root ignores chmod, so patch it)."""
+    from mjccd import _cache
+
+    real = os.access
+    monkeypatch.setattr(_cache.os, "access",
+                        lambda path, mode: False if Path(path).is_relative_to(pkg) else real(path, mode))
+
+
+def test_numba_caches_next_to_a_writable_package(tmp_path):
+    from mjccd import _cache
+
+    env = {}
+    assert _cache.cache_dir(env, str(_package(tmp_path))) is None
+    assert _cache.configure(env, str(_package(tmp_path / "again"))) is None and env == {}
+
+
+def test_read_only_package_caches_in_the_user_cache_folder(tmp_path, monkeypatch):
+    from mjccd import _cache
+
+    pkg = _package(tmp_path)
+    _read_only(monkeypatch, pkg)
+    env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    assert _cache.cache_dir(env, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    assert _cache.cache_dir({}, str(pkg)) == str(tmp_path / "home" / ".cache" / "mjccd")
+    assert _cache.cache_dir({"XDG_CACHE_HOME": ""}, str(pkg)) == str(tmp_path / "home" / ".cache" / "mjccd")
+    # configure sets NUMBA_CACHE_DIR and makes the folder
+    assert _cache.configure(env, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
+    assert env["NUMBA_CACHE_DIR"] == str(tmp_path / "xdg" / "mjccd") and (tmp_path / "xdg" / "mjccd").is_dir()
+
+
+def test_read_only_subpackage_is_enough_to_move_the_cache(tmp_path, monkeypatch):
+    from mjccd import _cache
+
+    pkg = _package(tmp_path)
+    _read_only(monkeypatch, pkg / "mujoco")
+    assert _cache.cache_dir({"XDG_CACHE_HOME": str(tmp_path / "xdg")}, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
+
+
+def test_a_users_numba_cache_dir_is_never_replaced(tmp_path, monkeypatch):
+    from mjccd import _cache
+
+    pkg = _package(tmp_path)
+    _read_only(monkeypatch, pkg)
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "mine"), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    assert _cache.cache_dir(env, str(pkg)) is None
+    assert _cache.configure(env, str(pkg)) is None
+    assert env["NUMBA_CACHE_DIR"] == str(tmp_path / "mine") and not (tmp_path / "xdg").exists()
+
+
+def test_an_unusable_user_cache_folder_leaves_numba_its_own_fallback(tmp_path, monkeypatch):
+    from mjccd import _cache
+
+    pkg = _package(tmp_path)
+    _read_only(monkeypatch, pkg)
+    (tmp_path / "xdg").write_text("a file where the cache folder would go")
+    env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    assert _cache.configure(env, str(pkg)) is None and "NUMBA_CACHE_DIR" not in env
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root writes into read-only folders")
+def test_importing_a_read_only_copy_sets_the_user_cache_folder(tmp_path):
+    copy = tmp_path / "site"
+    shutil.copytree(ROOT / "mjccd", copy / "mjccd", ignore=shutil.ignore_patterns("__pycache__", "*.nb[ic]"))
+    for folder in sorted((p for p in copy.rglob("*") if p.is_dir()), reverse=True) + [copy]:
+        folder.chmod(0o555)
+    try:
+        env = {**_clean_env(), "PYTHONPATH": str(copy), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+        env.pop("NUMBA_CACHE_DIR", None)
+        out = _run([sys.executable, "-c", "import mjccd, os; print(os.environ.get('NUMBA_CACHE_DIR'))"],
+                   cwd=tmp_path, env=env).strip()
+    finally:
+        for folder in [copy, *copy.rglob("*")]:
+            if folder.is_dir():
+                folder.chmod(0o755)
+    assert out == str(tmp_path / "xdg" / "mjccd")
+
+
+class _Event:
+    """A numba compile event as the listener sees it."""
+
+    def __init__(self, module):
+        self.data = {"dispatcher": SimpleNamespace(py_func=SimpleNamespace(__module__=module))}
+
+
+class _Clock:
+    def __init__(self):
+        self.now = 0.0
+
+    def __call__(self):
+        return self.now
+
+
+class _Stream(io.StringIO):
+    def __init__(self, tty):
+        super().__init__()
+        self.tty = tty
+
+    def isatty(self):
+        return self.tty
+
+
+def _compile_run(notice, clock, kernels, seconds, module="mjccd.ccd"):
+    """An outermost compile of ``kernels`` nested kernels taking ``seconds``, as numba reports it."""
+    step = seconds / (2 * kernels)
+    for _ in range(kernels):
+        notice.on_start(_Event(module))
+        clock.now += step
+    for _ in range(kernels):
+        clock.now += step
+        notice.on_end(_Event(module))
+
+
+def test_compile_notice_in_a_log_one_line_then_the_totals():
+    from mjccd import _cache
+
+    clock, stream = _Clock(), _Stream(tty=False)
+    notice = _cache.CompileNotice(stream, clock)
+    _compile_run(notice, clock, 40, 75.0)
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "mjccd: compiling kernels (first use only)…"
+    # a progress line every LOG_EVERY (30 s) of a long compile
+    assert lines[1:-1] == ["mjccd: compiling kernels… 34 so far, 31 s", "mjccd: compiling kernels… 40 so far, 61 s"]
+    assert lines[-1] == "mjccd: compiled 40 kernels in 75.0 s"
+
+
+def test_compile_notice_on_a_terminal_counts_on_one_line():
+    from mjccd import _cache
+
+    clock, stream = _Clock(), _Stream(tty=True)
+    notice = _cache.CompileNotice(stream, clock)
+    _compile_run(notice, clock, 10, 5.0)
+    _compile_run(notice, clock, 4, 2.0)  # a later run gets a line of its own
+    _compile_run(notice, clock, 3, 0.1)  # too short to print
+    lines = stream.getvalue().split("\n")
+    assert len(lines) == 3 and lines[2] == ""
+    assert lines[0].startswith("mjccd: compiling kernels (first use only)… 3 kernels, 0 s")
+    assert "\r\033[Kmjccd: compiling kernels (first use only)… 9 kernels, 2 s" in lines[0]
+    assert lines[0].endswith("\r\033[Kmjccd: compiling kernels (first use only)… 10 kernels in 5.0 s")
+    assert lines[1].startswith("mjccd: compiling kernels… ")
+    assert lines[1].endswith("\r\033[Kmjccd: compiled 4 kernels in 2.0 s")
+
+
+def test_compile_notice_is_silent_for_short_compiles_other_code_and_when_muted():
+    from mjccd import _cache
+
+    clock, stream = _Clock(), _Stream(tty=False)
+    notice = _cache.CompileNotice(stream, clock)
+    _compile_run(notice, clock, 3, 0.1)                       # shorter than NOTICE_DELAY
+    _compile_run(notice, clock, 5, 60.0, module="userpkg")  # not an mjccd kernel
+    with notice.muted():
+        _compile_run(notice, clock, 4, 60.0)
+    assert stream.getvalue() == "" and notice.total == 7
+    _compile_run(notice, clock, 2, 1.0)  # the first to print: the message, no totals for a short run
+    _compile_run(notice, clock, 6, 4.0)  # a later short run in a log: nothing
+    assert stream.getvalue().splitlines() == ["mjccd: compiling kernels (first use only)…"]
+    _compile_run(notice, clock, 12, 12.0)  # a later long run: from LONG_RUN on, then its totals
+    assert stream.getvalue().splitlines()[1:] == ["mjccd: compiling kernels… 11 so far, 5 s",
+                                                  "mjccd: compiled 12 kernels in 12.0 s"]
+
+
+def test_compiling_prints_the_notice_and_loading_from_the_cache_does_not(tmp_path):
+    code = ("from mjccd import _cache; _cache.NOTICE_DELAY = _cache.LONG_RUN = 0.0\n"
+            "from mjccd.motion import gamma; gamma(3)\n")
+    env = {**_clean_env(), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    first = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=300)
+    again = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True,
+                           timeout=300)
+    assert first.returncode == again.returncode == 0, first.stderr + again.stderr
+    assert first.stderr.splitlines()[0] == "mjccd: compiling kernels (first use only)…", first.stderr
+    assert first.stderr.splitlines()[-1].startswith("mjccd: compiled 1 kernel in "), first.stderr
+    assert again.stderr == ""
+
+
+def test_warmup_prints_one_line_per_job(monkeypatch):
+    from mjccd import _cache, warmup
+
+    notice = _cache.install_notice()
+
+    def compiles_two():
+        notice.total += 2  # what numba's compile events add
+
+    def fails():
+        raise RuntimeError("no model")
+
+    monkeypatch.setattr(warmup, "JOBS", {"one": ("a job that compiles", compiles_two),
+                                         "two": ("a job that loads", lambda: None),
+                                         "three": ("a job that fails", fails)})
+    stream = io.StringIO()
+    results = warmup.run(stream=stream)
+    lines = stream.getvalue().splitlines()
+    assert lines[0].startswith("mjccd warmup [1/3] one    a job that compiles … 2 kernels compiled, ")
+    assert lines[1].startswith("mjccd warmup [2/3] two    a job that loads … cached, ")
+    assert lines[2].startswith("mjccd warmup [3/3] three  a job that fails … cached, ")
+    assert lines[2].endswith("; failed: RuntimeError: no model")
+    assert lines[3].startswith("mjccd warmup: 2 kernels compiled in ") and len(lines) == 4
+    assert [r[0] for r in results.values()] == [2, 0, 0] and results["three"][3] == "RuntimeError: no model"
+
+
+def test_warmup_command_lists_its_jobs_and_refuses_unknown_ones():
+    from mjccd import warmup
+
+    done = subprocess.run([sys.executable, "-m", "mjccd", "warmup", "--list"], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert done.returncode == 0 and [line.split()[0] for line in done.stdout.splitlines()] == list(warmup.JOBS)
+    done = subprocess.run([sys.executable, "-m", "mjccd", "warmup", "nonsense"], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert done.returncode == 2 and "unknown job 'nonsense'" in done.stderr

@@ -191,7 +191,7 @@ def real_boxing_workload(model_path, traj_path, n_frames=None):
 # ---------------------------------------------------------------- references
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def _unfiltered_first(radii, positions, quats, pairs, out_time, out_pair):
     """First contact of every frame with the exact solver on every pair, no filters, t_max = 1."""
     for f in range(positions.shape[0] - 1):

@@ -141,7 +141,7 @@ def _positive(value, field, *, integer=False, allow_zero=False):
     return int(value) if integer else float(value)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def reach_fraction(tau, a):
     """Fraction s of a step at which a shorter MuJoCo step from the same start reaches the contact that the
     CCD found at fraction ``tau`` of the full step.
@@ -160,7 +160,7 @@ def reach_fraction(tau, a):
     return min(2.0 * tau / (a + root) if a >= 0.0 else (root - a) / (2.0 * (1.0 - a)), 1.0)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def pair_reach(tau, qvel0, qvel1, dofs):
     """:func:`reach_fraction` of a contact at ``tau`` with ``a`` = v0·v1 / v1·v1 over ``dofs`` (the velocities
     at the start and end of the step); ``tau`` itself when those dofs end the step at rest."""

@@ -88,7 +88,7 @@ class Kinematics:
         return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def ellipsoid_poses_into(xpos, xquat, body_ids, positions, quaternions, out):
     """Fill ``out`` (N, 7) with the world poses of ellipsoids fixed in bodies (body poses xpos, xquat).
 
@@ -152,7 +152,7 @@ def interpolate_qpos(model, qpos0, qpos1, t):
     return out
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def poses_then_may_touch(xpos, xquat, body_ids, local, p0, p1, workspace):
     """:func:`ellipsoid_poses_into` for the end poses ``p1`` (``local`` = [positions, quaternions]),
     then :func:`mjccd.scene.poses_may_touch` of a scene's ``workspace`` (:attr:`mjccd.scene.Scene.workspace`)

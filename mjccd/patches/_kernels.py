@@ -15,10 +15,13 @@ import numba
 
 from mjccd.sorting import sort_by_key
 
-_jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-# small helpers of hot loops; only ones on scalars or called once per node: array arguments of an
-# inlined helper cost reference counting in the loops that call it
-_inline = numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True, forceinline=False)
+# small helpers of hot loops; only ones on scalars or called once per node: array arguments of a helper cost
+# reference counting in the loops that call it.  Compiled once and inlined by LLVM (inline="always" copied
+# their numba IR into every caller, which multiplied compile time; docs/benchmarks.md, "First use")
+_inline = numba.njit(cache=True, nogil=True, error_model="numpy", no_cfunc_wrapper=True, forceinline=True)
 
 INF = np.inf
 

@@ -10,7 +10,10 @@ checked when its two ellipsoids hang under different top-level bodies and at
 least one of them moves; a model with one character (an imported skeleton)
 falls back to that character's self-collisions, every pair of bodies that are
 neither one rigid body nor a parent and a child (``--pairs self``), and says
-so with a :class:`~mjccd.mujoco.warnings.CoverageWarning`.
+so with a :class:`~mjccd.mujoco.warnings.CoverageWarning`.  Static planes (floors, walls) count
+too: by default every ellipsoid that moves is checked against every static plane (``--planes all``;
+``mujoco`` keeps the pairs MuJoCo's own rules would collide, ``none`` leaves planes out), so a floor
+under the boxers counts even though MuJoCo never collides with it (it is a visual geom there).
 
 Inputs are checked before any work: a bad model or trajectory stops with a
 :class:`ReplayError` naming the file and the problem.  The frames run in
@@ -48,13 +51,14 @@ from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 from mjccd.mujoco import adapter
 from mjccd.mujoco.adapter import ModelAdapter
-from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, body_label, geom_ellipsoids
+from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, body_label, geom_ellipsoids, geom_label
 from mjccd.mujoco.motions import State, as_state
-from mjccd.mujoco.pairs import PAIR_RULES, pairs_with_reason
+from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.scene import FrameCounters
 
 MOTIONS = ("rigid", "affine", "chain")
+PLANE_RULES = ("all", "mujoco", "none")  # which static planes each ellipsoid is checked against (replay_planes)
 # filter counters, summed over the frames (the fields of mjccd.scene.FrameCounters)
 COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))
 OUTPUT_PATTERNS = ("contacts.json", "contacts.csv", "timeline.png", "frame_*.png")  # every file replay writes
@@ -133,6 +137,17 @@ def replay_ellipsoids(model, pairs=None, source="model"):
     except InputError as exc:
         raise ReplayError(str(exc)) from None
     return ellipsoids, pairs
+
+
+def replay_planes(model, ellipsoids, planes="all"):
+    """(Q, 2) rows (ellipsoid index, plane geom id) of the static planes to check: ``"all"``
+    (:func:`~mjccd.mujoco.pairs.every_plane_pair`: every ellipsoid that moves against every static plane),
+    ``"mujoco"`` (:func:`~mjccd.mujoco.pairs.plane_pairs`: MuJoCo's collision rules) or ``"none"``."""
+    if planes not in PLANE_RULES:
+        raise ReplayError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {planes!r}")
+    if planes == "none":
+        return np.zeros((0, 2), dtype=np.int64)
+    return every_plane_pair(model, ellipsoids) if planes == "all" else plane_pairs(model, ellipsoids)
 
 
 def ellipsoid_labels(ellipsoids):
@@ -571,14 +586,15 @@ class ReplayResult:
     """Everything a replay found.
 
     ``ellipsoids`` (:class:`~mjccd.mujoco.EllipsoidSet`) are the model's bounding ellipsoids,
-    ``pairs`` (P, 2) the pairs checked and ``labels`` a short name per ellipsoid.  ``contacts`` are
-    the first contacts (dicts, as in ``contacts.json``).  ``overlaps`` maps a pair (an index into
-    ``pairs``) to its runs of frame intervals in contact (or
+    ``pairs`` (P, 2) the pairs checked, ``plane_pairs`` (Q, 2) the (ellipsoid, plane geom) pairs checked and
+    ``labels`` a short name per ellipsoid.  ``contacts`` are the first contacts (dicts, as in
+    ``contacts.json``).  ``overlaps`` maps a pair (an index into ``pairs``, or P + a row of
+    ``plane_pairs``; :meth:`names` gives its names) to its runs of frame intervals in contact (or
     possibly in contact: an uncertain result), each ``(first, last, time[first],
     time[last + 1])``, in order; ``frames_in_contact`` counts the frame intervals with any pair
     in contact; ``time_range`` is the times of the first and the last frame.
 
-    Nothing per frame is kept: ``time`` (T,) and ``in_contact`` ((T - 1, P) flags, made from
+    Nothing per frame is kept: ``time`` (T,) and ``in_contact`` ((T - 1, P + Q) flags, made from
     ``overlaps``) are built on first use and kept from then on; ``time`` is read again from the
     trajectory file.
     """
@@ -598,6 +614,24 @@ class ReplayResult:
     timing: dict = field(default_factory=dict)
     files: list = field(default_factory=list)
     source: Trajectory = field(default=None, repr=False, compare=False)  # where ``time`` is read from
+    plane_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    plane_names: dict = field(default_factory=dict)  # plane geom id -> (geom name, body name)
+
+    @property
+    def n_checked(self):
+        """P + Q: the pairs of ellipsoids and the (ellipsoid, plane) pairs."""
+        return len(self.pairs) + len(self.plane_pairs)
+
+    def names(self, p):
+        """``(ellipsoids, bodies, labels)`` of pair ``p`` (below P: two ellipsoids; from P on: an ellipsoid and a
+        plane, named by its geom and its body), each a list of two names, as contacts.json gives them."""
+        ell = self.ellipsoids
+        if p < len(self.pairs):
+            i, j = (int(x) for x in self.pairs[p])
+            return [ell.geoms[i], ell.geoms[j]], [ell.bodies[i], ell.bodies[j]], [self.labels[i], self.labels[j]]
+        i, g = (int(x) for x in self.plane_pairs[p - len(self.pairs)])
+        geom, body = self.plane_names[g]
+        return [ell.geoms[i], geom], [ell.bodies[i], body], [self.labels[i], geom]
 
     @cached_property
     def time(self):
@@ -606,15 +640,15 @@ class ReplayResult:
 
     @cached_property
     def in_contact(self):
-        """(T - 1, P) flags: pair p in contact during frame interval k (T - 1 by P bytes, made on first use)."""
-        flags = np.zeros((self.n_frames - 1, len(self.pairs)), dtype=bool)
+        """(T - 1, P + Q) flags: pair p in contact during frame interval k (made on first use)."""
+        flags = np.zeros((self.n_frames - 1, self.n_checked), dtype=bool)
         for p, runs in self.overlaps.items():
             for first, last, _, _ in runs:
                 flags[first:last + 1, p] = True
         return flags
 
 
-def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progress=True, render=True,
+def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes="all", progress=True, render=True,
            max_rendered=4, force=False, chunk_frames=None, read_frames=None):
     """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
 
@@ -626,6 +660,8 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
             a folder holding another run's files is refused unless ``force`` (see :class:`OutputFolder`).
         pairs: (P, 2) ellipsoid index pairs to check, ``"characters"`` or ``"self"``; None: the default
             (see :func:`replay_ellipsoids`).
+        planes: the static planes each ellipsoid is checked against: ``"all"``, ``"mujoco"`` or ``"none"``
+            (see :func:`replay_planes`).
         chunk_frames: frame intervals per chunk of compiled work (Ctrl-C is acted on between chunks);
             None: the motion's :data:`CHUNK_FRAMES`.  The results do not depend on it.
         read_frames: frames read from the trajectory file at a time (None: :data:`READ_FRAMES`); the
@@ -641,14 +677,19 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, progre
     read_frames = READ_FRAMES if read_frames is None else read_frames
     if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):  # before the model is loaded
         raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
+    if planes not in PLANE_RULES:  # before the model is loaded
+        raise ReplayError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {planes!r}")
     model = load_model(model_path)
     ellipsoids, pairs = replay_ellipsoids(model, pairs, source=str(model_path))
+    on_planes = replay_planes(model, ellipsoids, planes)
     trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
     folder = None if out_dir is None else output_folder(out_dir, force)
     result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
-                          ellipsoid_labels(ellipsoids), source=trajectory)
+                          ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
+                          plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
+                                       for g in set(on_planes[:, 1].tolist())})
     rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
-    checker = ModelAdapter(model, ellipsoids, pairs, motion)
+    checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
     _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
     if folder is not None:
         try:
@@ -699,7 +740,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
     counters = dict.fromkeys(COUNTER_NAMES, 0)
     n = trajectory.n_frames - 1
-    overlaps = _Overlaps(len(result.pairs))
+    overlaps = _Overlaps(result.n_checked)
     t_first = t_last = None
     t_kin = t_ccd = 0.0
     bar = None
@@ -718,7 +759,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
                 _check_centres(poses, first, result)
                 t_kin += _time.perf_counter() - start
                 start = _time.perf_counter()
-                flags = np.zeros((stop - first, len(result.pairs)), dtype=bool)
+                flags = np.zeros((stop - first, result.n_checked), dtype=bool)
                 states = [State(q, mocap_pos, mocap_quat, float(t)) for q, t in zip(qpos, time)]
                 for i in range(stop - first):
                     try:
@@ -818,20 +859,19 @@ def _record(result, k, report, t0, t1, flags):
 
     A pair is in contact when it touches or overlaps at the start, collides, or may collide (an
     uncertain answer); a first contact is a contact of a pair separate at the start (an uncertain one
-    at the start of its bracket, with a zero point and normal).
+    at the start of its bracket, with a zero point and normal).  A plane pair's names are its ellipsoid's
+    and its plane geom's.
     """
-    ell, labels = result.ellipsoids, result.labels
     dt = t1 - t0
     for c in sorted(report.contacts, key=lambda c: c.pair):
         flags[c.pair] = True
         if c.status_at_start != "separate":
             continue
-        i, j = c.ellipsoids
+        ellipsoids, bodies, labels = result.names(c.pair)
         none = (0.0, 0.0, 0.0)
         result.contacts.append({
             "frame": int(k), "toi": float(c.fraction), "time": float(t0 + c.fraction * dt),
-            "ellipsoids": [ell.geoms[i], ell.geoms[j]], "bodies": [ell.bodies[i], ell.bodies[j]],
-            "labels": [labels[i], labels[j]],
+            "ellipsoids": ellipsoids, "bodies": bodies, "labels": labels,
             "point": [float(x) for x in (none if c.point is None else c.point)],
             "normal": [float(x) for x in (none if c.normal is None else c.normal)]})
 
@@ -929,9 +969,10 @@ def summary(result):
     t = result.timing
     frames_hit = result.frames_in_contact
     pairs_hit = len(result.overlaps)
+    planes = f", {len(result.plane_pairs)} ellipsoid-plane pairs" if len(result.plane_pairs) else ""
     lines = [
         f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.ellipsoids)} ellipsoids, "
-        f"{len(result.pairs)} pairs, motion {result.motion}",
+        f"{len(result.pairs)} pairs{planes}, motion {result.motion}",
         f"first contacts: {len(result.contacts)}; frames with contact: {frames_hit}; "
         f"pairs ever in contact: {pairs_hit}",
         "filter: " + ", ".join(f"{k} {v}" for k, v in c.items()),
@@ -945,10 +986,8 @@ def _overlap_spans(result):
     """The ``in_contact`` entries of contacts.json: each pair ever in contact, in pair order, and its frame runs."""
     spans = []
     for p in sorted(result.overlaps):
-        i, j = result.pairs[p]
-        ell = result.ellipsoids
-        spans.append({"ellipsoids": [ell.geoms[i], ell.geoms[j]], "bodies": [ell.bodies[i], ell.bodies[j]],
-                      "labels": [result.labels[i], result.labels[j]],
+        ellipsoids, bodies, labels = result.names(p)
+        spans.append({"ellipsoids": ellipsoids, "bodies": bodies, "labels": labels,
                       "frames": [[a, b] for a, b, _, _ in result.overlaps[p]]})
     return spans
 
@@ -957,6 +996,7 @@ def write_reports(result, folder):
     """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`)."""
     doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
            "frames": result.n_frames, "ellipsoids": list(result.ellipsoids.geoms), "pairs": len(result.pairs),
+           "plane_pairs": len(result.plane_pairs),
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
     with folder.open("contacts.json", "w", encoding="utf-8") as fh:
@@ -1139,6 +1179,10 @@ def main(argv=None):
                              "least one moving) or 'self' (within each top-level body, bodies neither rigidly "
                              "joined nor parent and child); default: 'characters', or 'self' when the model "
                              "has one character")
+    parser.add_argument("--planes", choices=PLANE_RULES, default="all",
+                        help="static planes (floors, walls) to check: 'all' (every moving ellipsoid against every "
+                             "static plane, the default), 'mujoco' (the pairs MuJoCo's collision rules give) or "
+                             "'none'")
     parser.add_argument("--out", type=_folder_name,
                         help="folder for contacts.json, contacts.csv, timeline.png, frames (written only when "
                              "the replay completes; a folder holding another run needs --force)")
@@ -1165,7 +1209,7 @@ def main(argv=None):
                                               as_state(model, keys[k + 1], "keyframes"))
                     except InputError as exc:
                         raise ReplayError(f"{args.traj}: keyframes {k} to {k + 1}: {exc}") from None
-            result = replay(args.model, args.traj, args.motion, args.out, pairs=args.pairs,
+            result = replay(args.model, args.traj, args.motion, args.out, pairs=args.pairs, planes=args.planes,
                             render=not args.no_render, force=args.force)
     except (ValueError, MjccdError) as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)

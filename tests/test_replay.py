@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjccd import Ellipsoid, Rigid, first_contact, replay
+from mjccd import Ellipsoid, Plane, Rigid, first_contact, plane_first_contact, replay
 from mjccd.mujoco import ModelAdapter, State
 from mjccd.quadric import matrix_to_quat
 
@@ -28,6 +28,13 @@ def short_traj(tmp_path_factory):
 @pytest.fixture(scope="module")
 def result(short_traj, tmp_path_factory):
     out = tmp_path_factory.mktemp("out")
+    return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, planes="none"), out
+
+
+@pytest.fixture(scope="module")
+def floor_result(short_traj, tmp_path_factory):
+    """The same replay with its default planes: every moving ellipsoid against the floor."""
+    out = tmp_path_factory.mktemp("floor")
     return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False), out
 
 
@@ -82,6 +89,44 @@ def test_contact_agrees_with_pairwise_solver(result, short_traj):
         assert got is not None and got.point is not None
         assert abs(got.time - c["toi"]) < 1e-9
         np.testing.assert_allclose(got.point, c["point"], atol=1e-6)
+
+
+def test_the_floor_counts_by_default(floor_result, result, short_traj):
+    """The boxers' floor is a visual geom MuJoCo never collides, yet replay checks every moving ellipsoid against
+    it; each floor contact is the exact answer of the ellipsoid's rigid motion against the plane z <= 0."""
+    res, out = floor_result
+    model = replay.load_model(MODEL)
+    ellipsoids, _ = replay.replay_ellipsoids(model)
+    floor = model.geom("floor").id
+    assert res.plane_pairs.tolist() == [[i, floor] for i in range(42)]
+    assert len(replay.replay_planes(model, ellipsoids, "mujoco")) == 0  # contype 0: not by MuJoCo's rules
+    assert len(replay.replay_planes(model, ellipsoids, "none")) == 0
+    doc = json.loads((out / "contacts.json").read_text())
+    assert doc["pairs"] == 441 and doc["plane_pairs"] == 42
+    assert doc["counters"]["pairs"] == (441 + 42) * (LAST - FIRST - 1)
+    on_floor = [c for c in res.contacts if c["bodies"][1] == "world"]
+    assert on_floor and all(c["ellipsoids"][1] == "floor" and c["labels"][1] == "floor" for c in on_floor)
+    assert [c for c in res.contacts if c["bodies"][1] != "world"] == result[0].contacts  # the pairs unchanged
+    assert any(s["ellipsoids"][1] == "floor" for s in doc["in_contact"])
+    assert "42 ellipsoid-plane pairs" in replay.summary(res)
+    qpos, _ = replay.load_trajectory(short_traj, model)
+    data = mujoco.MjData(model)
+    for c in on_floor[:4]:
+        k, g = c["frame"], model.geom(c["ellipsoids"][0]).id
+        poses = []
+        for q in qpos[k:k + 2]:
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
+            poses.append((data.geom_xpos[g].copy(), matrix_to_quat(data.geom_xmat[g].reshape(3, 3))))
+        got = plane_first_contact(Ellipsoid(model.geom_size[g]), Rigid(*poses[0], *poses[1]),
+                                  Plane([0.0, 0.0, 1.0], 0.0))
+        assert got is not None and abs(got.time - c["toi"]) < 1e-9
+        np.testing.assert_allclose(got.point, c["point"], atol=1e-6)
+
+
+def test_planes_option_is_checked(short_traj):
+    with pytest.raises(ValueError, match="planes: expected one of all, mujoco, none, got 'floor'"):
+        replay.replay(MODEL, short_traj, planes="floor", progress=False)
 
 
 def test_affine_motion_runs(short_traj):

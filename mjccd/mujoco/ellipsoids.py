@@ -290,7 +290,8 @@ def collision_geoms(model, body_id, *, include_visual=False):
     return [g for g in ids if include_visual or (model.geom_contype[g] | model.geom_conaffinity[g])]
 
 
-def _geom_label(model, geom_id):
+def geom_label(model, geom_id):
+    """A geom's name, or ``#id`` for an unnamed geom (as ``fit_model(per="geom")`` names it)."""
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(geom_id)) or f"#{int(geom_id)}"
 
 
@@ -371,7 +372,7 @@ def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=
             elif per == "geom":
                 for g in usable:
                     shape = geom_shape(model, g)
-                    emit(b, _geom_label(model, g), [fit_shapes([shape])], shape.volume())
+                    emit(b, geom_label(model, g), [fit_shapes([shape])], shape.volume())
             else:
                 shapes = [geom_shape(model, g) for g in usable]
                 emit(b, "", [fit_shapes(shapes)], sum(shape.volume() for shape in shapes))
@@ -395,8 +396,8 @@ def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit):
         try:
             cover = cover_shape(shape, tolerance, max_ellipsoids=max_ellipsoids)
         except ValueError as exc:
-            raise ValueError(f"geom {_geom_label(model, g)!r}: {exc}") from None
-        emit(body_id, _geom_label(model, g), cover, shape.volume())
+            raise ValueError(f"geom {geom_label(model, g)!r}: {exc}") from None
+        emit(body_id, geom_label(model, g), cover, shape.volume())
 
 
 @dataclass(frozen=True)
@@ -435,7 +436,7 @@ def fit_report(model, ellipsoids, *, include_visual=False, surface_samples=SURFA
     if not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
     ids = ellipsoids.body_ids(model)
-    geom_ids = {_geom_label(model, g): g for g in range(model.ngeom)}
+    geom_ids = {geom_label(model, g): g for g in range(model.ngeom)}
     reports = []
     for label in dict.fromkeys(ellipsoids.bodies):
         rows = [k for k, b in enumerate(ellipsoids.bodies) if b == label]

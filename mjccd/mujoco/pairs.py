@@ -31,7 +31,7 @@ import numpy as np
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import static_status_code
 from mjccd.mujoco.chains import body_path
-from mjccd.mujoco.ellipsoids import SUPPORTED, body_label
+from mjccd.mujoco.ellipsoids import SUPPORTED, body_label, geom_label
 from mjccd.mujoco.motions import Kinematics, State
 from mjccd.mujoco.warnings import CoverageWarning
 
@@ -55,12 +55,6 @@ _OTHER_RULES = "pass pairs='characters', pairs='self' or a list of (body, body) 
 
 def _pair_key(a, b):
     return (a, b) if a < b else (b, a)
-
-
-def geom_label(model, geom_id):
-    """A geom's name, or ``#id`` for an unnamed geom (as ``fit_model(per="geom")`` names it)."""
-    name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(geom_id))
-    return name if name else f"#{int(geom_id)}"
 
 
 def excluded_body_pairs(model):
@@ -244,6 +238,19 @@ def plane_pairs(model, ellipsoids):
         if _static_plane(model, p):
             rows.extend((int(i), p) for i in np.flatnonzero(rules.against_geom(p) == COLLIDED))
     rows.sort()
+    return np.array(rows, dtype=np.int64).reshape(-1, 2)
+
+
+def every_plane_pair(model, ellipsoids, body_ids=None):
+    """(Q, 2) int64 rows (ellipsoid index, plane geom id): every static plane against every ellipsoid on a body
+    that moves (a joint on its path to the world), contype/conaffinity and ``<exclude>`` not consulted.
+
+    The explicit request beside :func:`plane_pairs`, as :func:`character_pairs` is beside
+    :func:`default_pairs`: a replayed character's floor is often a visual geom that MuJoCo never collides.
+    """
+    ids = ellipsoids.body_ids(model) if body_ids is None else np.asarray(body_ids, dtype=np.int64)
+    moving = [i for i, b in enumerate(ids.tolist()) if any(model.body_jntnum[a] > 0 for a in body_path(model, b))]
+    rows = [(i, p) for i in moving for p in range(model.ngeom) if _static_plane(model, p)]
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 

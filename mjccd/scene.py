@@ -1350,3 +1350,7 @@ class Scene:
         hit = np.flatnonzero(out.pair >= 0)
         uncertain[hit] = out.outcomes[hit, out.pair[hit]] == UNCERTAIN
         return RunResult(*out, uncertain)
+
+
+split_poses = _split_poses
+"""Public name of :func:`_split_poses`, for kernels that split poses as :meth:`Scene.step` does (:mod:`mjccd.batch`)."""

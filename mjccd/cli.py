@@ -83,9 +83,22 @@ BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monit
                 "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity"}
 
 
+def _choose_gl_backend():
+    """``MUJOCO_GL=egl`` for headless pictures (``fit --render``, replay's frames): set before mujoco is imported,
+    since it picks its OpenGL platform then; only with no display, no backend chosen and libEGL installed."""
+    if "MUJOCO_GL" in os.environ or os.environ.get("DISPLAY"):
+        return
+    import ctypes.util
+
+    if ctypes.util.find_library("EGL"):
+        os.environ["MUJOCO_GL"] = "egl"
+
+
 def _delegate(module_name, argv):
     import importlib
 
+    if module_name in ("mjccd.fit", "mjccd.replay"):
+        _choose_gl_backend()
     return importlib.import_module(module_name).main(argv)
 
 

@@ -218,6 +218,9 @@ def main(argv=None):
     parser.add_argument("--group", type=int, default=VISUAL_GROUP, help="geom group of the ellipsoids")
     parser.add_argument("--force", action="store_true", help="replace existing output files (even MODEL)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no report")
+    parser.add_argument("--render", metavar="PNG",
+                        help="also draw the written model (-o) with its ellipsoids into this picture (skipped, "
+                        "with one line, where OpenGL is missing)")
     args = parser.parse_args(argv)
     written = []
     try:
@@ -226,6 +229,10 @@ def main(argv=None):
             model = load_model(args.model)
             output, target = _output_paths(args)
             written = [p for p in (output, target) if p]
+            if args.render:
+                if not output:
+                    raise InputError("--render: draws the written model, so it needs -o OUT.xml")
+                files.check_output_file(args.render, inputs=[args.model, output], force=args.force)
             try:
                 if args.max_ellipsoids < 1:
                     raise InputError(f"--max-ellipsoids: expected a positive integer, got {args.max_ellipsoids}")
@@ -244,9 +251,40 @@ def main(argv=None):
                 stack.enter_context(files.atomic_open(target, "wb")).write(data)
     except (MjccdError, ValueError, OSError) as exc:
         return _command.failure("fit", exc, written)
+    if args.render:
+        try:
+            render_fit(output, args.render, group=args.group)
+        except (MjccdError, ValueError, OSError) as exc:
+            return _command.failure("fit", exc, [args.render])
     if not args.quiet:
         print(volume_report(ellipsoids, report))
     return 0
+
+
+def render_fit(model_path, png, *, group=VISUAL_GROUP, height=720, width=960):
+    """Draw the model at ``model_path`` (its first keyframe, else ``qpos0``) with geom group ``group`` shown into
+    the picture ``png``, written whole or not at all; returns False (after one line) where OpenGL is missing."""
+    from matplotlib.image import imsave
+
+    from mjccd.mujoco.render import open_renderer, scene_option, whole_model_camera
+
+    model = mujoco.MjModel.from_xml_path(str(model_path))  # as written, ellipsoids included
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    renderer = open_renderer(model, height, width)
+    if renderer is None:
+        return False
+    try:
+        data = mujoco.MjData(model)
+        if model.nkey:
+            mujoco.mj_resetDataKeyframe(model, data, 0)
+        mujoco.mj_forward(model, data)
+        renderer.update_scene(data, whole_model_camera(model, data), scene_option(group))
+        with files.atomic_open(png, "wb") as fh:
+            imsave(fh, renderer.render(), format="png")
+    finally:
+        renderer.close()
+    return True
 
 
 def _tolerance(text):

@@ -51,7 +51,7 @@ from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 from mjccd.mujoco import adapter
 from mjccd.mujoco.adapter import ModelAdapter
-from mjccd.mujoco.ellipsoids import BOUND_GROUP, EllipsoidSet, body_label, geom_ellipsoids, geom_label
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, geom_ellipsoids, geom_label
 from mjccd.mujoco.motions import State, as_state
 from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
 from mjccd.mujoco.warnings import CoverageWarning
@@ -1076,25 +1076,16 @@ def render_frames(model, qpos, result, folder, count=4):
     """
     if not result.contacts or count <= 0:
         return
-    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-        os.environ["MUJOCO_GL"] = "egl"
-    try:
-        import warnings
-
-        import mujoco
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            renderer = mujoco.Renderer(model, 480, 640)
-    except Exception as exc:  # no usable OpenGL context on this machine
-        print(f"rendering skipped: no OpenGL backend ({_reason(exc)}); set MUJOCO_GL=egl or osmesa",
-              file=sys.stderr)
-        return
+    import mujoco
     from matplotlib.image import imsave
 
+    from mjccd.mujoco.render import open_renderer, scene_option
+
+    renderer = open_renderer(model)
+    if renderer is None:
+        return
     data = mujoco.MjData(model)
-    opt = mujoco.MjvOption()
-    opt.geomgroup[BOUND_GROUP] = 1
+    opt = scene_option()
     cam = mujoco.MjvCamera()
     picked, seen = [], set()
     for c in result.contacts:
@@ -1109,7 +1100,8 @@ def render_frames(model, qpos, result, folder, count=4):
     try:
         for c in picked:
             k = c["frame"]
-            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc["ellipsoids"]}
+            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc["ellipsoids"]
+                   if n in name_to_geom}  # the ellipsoids (not a plane they touch)
             model.geom_rgba[:] = rgba
             for g in red:
                 model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
@@ -1194,8 +1186,6 @@ def main(argv=None):
                         help="also print every pair's collision intervals over each segment between the "
                              "trajectory's keyframes (npz 'keyframes', chain motion)")
     args = parser.parse_args(argv)
-    if not args.no_render and "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-        os.environ["MUJOCO_GL"] = "egl"  # must be chosen before mujoco is first imported
     try:
         keys = None
         with _coverage_notes():

@@ -232,6 +232,32 @@ def test_cli_main(tmp_path, capsys):
     assert "has no collision geometry" in capsys.readouterr().err
 
 
+def test_cli_render_draws_the_fit_or_says_why_not(tmp_path, capsys):
+    """``--render``: a picture of the written model (in a fresh process: MUJOCO_GL is chosen before mujoco is
+    imported), or one line saying OpenGL is missing; it needs -o and never overwrites a file unasked."""
+    import subprocess
+    import sys
+
+    from matplotlib.image import imread
+
+    src = tmp_path / "shapes.xml"
+    src.write_text(SHAPES)
+    out, png = tmp_path / "out.xml", tmp_path / "fit.png"
+    assert main([str(src), "--render", str(png), "-q"]) == 2
+    assert "--render: draws the written model, so it needs -o OUT.xml" in capsys.readouterr().err
+    done = subprocess.run([sys.executable, "-m", "mjccd", "fit", str(src), "-o", str(out), "--tolerance", "none",
+                           "-q", "--render", str(png)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    if png.exists():
+        picture = imread(png)
+        assert picture.shape[:2] == (720, 960) and picture[..., :3].std() > 0.01  # not a blank frame
+    else:
+        assert "rendering skipped: no OpenGL backend" in done.stderr
+    png.write_bytes(b"mine")
+    assert main([str(src), "-o", str(tmp_path / "again.xml"), "--render", str(png), "-q"]) == 2
+    assert png.read_bytes() == b"mine" and not (tmp_path / "again.xml").exists()
+
+
 def test_cli_refuses_a_geom_that_needs_too_many_ellipsoids(tmp_path, capsys):
     """The 30 cm wedge has sharp corners: at the default 1 cm it needs more than 64 ellipsoids; nothing is written."""
     src = tmp_path / "shapes.xml"

@@ -180,6 +180,25 @@ def test_cli_runs(tmp_path, capsys, short_traj):
     assert (tmp_path / "contacts.json").exists()
 
 
+def test_cli_renders_frames_at_floor_contacts_or_says_why_not(tmp_path, short_traj):
+    """The command line draws the first contacts, a foot on the floor among them (in a fresh process: MUJOCO_GL is
+    chosen before mujoco is imported), or says in one line that OpenGL is missing."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "mjccd", "replay", str(MODEL), str(short_traj), "--out",
+                           str(tmp_path), "--rows", "1"], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    frames = sorted(tmp_path.glob("frame_*.png"))
+    if frames:
+        doc = json.loads((tmp_path / "contacts.json").read_text())
+        drawn = {int(f.stem[6:]) for f in frames}
+        assert drawn <= {c["frame"] + d for c in doc["first_contacts"] for d in (0, 1)}
+        assert any(c["ellipsoids"][1] == "floor" and c["frame"] in drawn for c in doc["first_contacts"])
+    else:
+        assert "rendering skipped: no OpenGL backend" in done.stderr
+
+
 def test_arm_chain_frames_agree_with_whole_sweep(tmp_path):
     """tan(theta/2)-linear joints: a frame's chain contact lies on the whole sweep's interval."""
     arm = ROOT / "models" / "arm_obstacle.xml"

@@ -1299,11 +1299,20 @@ class Scene:
         way); for callers that check every simulator step (the guard).
         Arguments as in :meth:`step`.
         """
-        best_k, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only))
+        best_k = self.first_pair(poses_t0, poses_t1, new_contacts_only=new_contacts_only)
         if best_k < 0:
             return None
         a = self._arrays
         return first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
+
+    def first_pair(self, poses_t0, poses_t1, *, new_contacts_only=False):
+        """The pair index of the first contact of one frame (-1: none), for callers that read the rest of the
+        answer from :attr:`workspace` (``outcome``, ``times``, ``points``, ... of every pair, ``counters``).
+
+        The check of :meth:`first_contact`, which is :func:`first_of` of this index.  Arguments as in :meth:`step`.
+        """
+        best_k, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only))
+        return int(best_k)
 
     def may_touch(self, poses_t0, poses_t1):
         """A cheap conservative test: False only when :meth:`first_contact` ``(..., new_contacts_only=True)`` of

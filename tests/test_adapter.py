@@ -237,3 +237,67 @@ def test_plane_clearance_is_the_centre_height_less_the_support():
         support = np.sqrt(np.sum((radii * (quat_to_matrix(q).T @ normal)) ** 2))
         assert plane_clearance(radii, pose, np.r_[normal, 0.3]) == pytest.approx(normal @ pose[:3] - 0.3 - support,
                                                                                   abs=1e-12)
+
+
+# a heap of free bodies over a floor: random states leave many pairs overlapping and many bodies below the floor
+HEAP = """
+<mujoco>
+ <worldbody>
+  <geom name="floor" type="plane" size="5 5 0.1"/>
+""" + "".join(f"""  <body name="b{k}" pos="0 0 1"><freejoint/>
+   <geom type="ellipsoid" size="{0.1 + 0.02 * k} {0.06 + 0.01 * k} 0.05"/></body>
+""" for k in range(6)) + """ </worldbody>
+</mujoco>
+"""
+
+
+def _heap_states(adapter, n, seed):
+    """n random (poses t0, poses t1) of HEAP's ellipsoids: bodies near one another and the floor, moving a little."""
+    rng = np.random.default_rng(seed)
+    nb = adapter.model.nbody - 1
+    for _ in range(n):
+        q = np.zeros(7 * nb)
+        for b in range(nb):
+            q[7 * b:7 * b + 3] = rng.uniform([-0.3, -0.3, -0.05], [0.3, 0.3, 0.3])
+            quat = rng.normal(size=4)
+            q[7 * b + 3:7 * b + 7] = quat / np.linalg.norm(quat)
+        q1 = q.copy()
+        q1[0::7] += rng.uniform(-0.05, 0.05, nb)
+        none = (np.empty((0, 3)), np.empty((0, 4)))
+        yield adapter.poses(State(q, *none, 0.0)), adapter.poses(State(q1, *none, 0.01))
+
+
+def test_start_status_from_the_scene_outcome_equals_the_static_status_recomputed():
+    """A contact at t = 0 that the scene's outcome proves (OVERLAP_T0) reports the static status of the start
+    poses recomputed from scratch: the same on random states, pairs of ellipsoids and plane pairs alike."""
+    from mjccd.mujoco.pairs import plane_pairs
+    from mjccd.scene import all_pairs
+
+    model = mujoco.MjModel.from_xml_string(HEAP)
+    ellipsoids = fit_model(model)
+    adapter = ModelAdapter(model, ellipsoids, all_pairs(len(ellipsoids)), "rigid",
+                           plane_pairs=plane_pairs(model, ellipsoids))
+    seen = {"pair": 0, "plane": 0}
+    for p0, p1 in _heap_states(adapter, 60, 3):
+        report = adapter.check_poses(0.0, 0.01, p0, p1, all_pairs=True)
+        first = adapter.check_poses(0.0, 0.01, p0, p1).first
+        for c in report.contacts + (() if first is None else (first,)):
+            if c.fraction == 0.0 and c.point is None and c.certainty == "certified":
+                recomputed = adapter.contact(0.0, 0.01, c.pair, 0.0, None, None, p0)
+                assert c.status_at_start == recomputed.status_at_start == "overlapping"
+                seen["plane" if c.geom >= 0 else "pair"] += 1
+    assert seen["pair"] > 20 and seen["plane"] > 20
+
+
+def test_step_counters_are_a_read_only_mapping_equal_to_the_dict():
+    from mjccd.mujoco.adapter import COUNTER_NAMES, StepCounters
+
+    counts = list(range(len(COUNTER_NAMES)))
+    counters = StepCounters(counts)
+    assert counters == dict(zip(COUNTER_NAMES, counts)) and dict(zip(COUNTER_NAMES, counts)) == counters
+    assert list(counters) == list(COUNTER_NAMES) and counters["uncertain"] == 8 and len(counters) == 10
+    assert repr(counters) == repr(dict(zip(COUNTER_NAMES, counts)))
+    with pytest.raises(KeyError):
+        counters["nothing"]
+    with pytest.raises(TypeError):
+        counters["pairs"] = 1

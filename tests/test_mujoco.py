@@ -422,10 +422,22 @@ def limited_scene(monkeypatch):
 
     def limit(affine, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
         return 1, np.empty((0, 2)), np.zeros(3), np.zeros(3), False, 0.3, 0.8
+    import mjccd.mujoco.monitor as mon
+    import mjccd.mujoco.motions as mo
+
+    # the guard's compiled step check, compiled (or loaded) before the kernels it calls are replaced
+    m, d = _throw(0.0011)
+    check = mon.StepCheck(CCDMonitor(m, d, fit_model(m)))
+    check.begin(d)
+    mujoco.mj_step(m, d)
+    check.end_may_touch(d)
     monkeypatch.setattr(sc, "_borrow", lambda a: a)
     monkeypatch.setattr(sc, "exact_pair", limit)
     kernel = sc.step_kernel.py_func
     monkeypatch.setattr(sc, "step_kernel", kernel)
+    # the monitor's one compiled call around the kernel, as Python calling it
+    monkeypatch.setattr(mo, "step_kernel", kernel)
+    monkeypatch.setattr(mon, "poses_then_first", mo.poses_then_first.py_func)
 
 
 def test_monitor_certified_contacts_say_so():
@@ -493,3 +505,274 @@ def test_testing_helpers_with_uncertain_answers(monkeypatch):
         assert_no_contact(m, rows[:13], motion="chain", times=times[:13])
     with pytest.raises(AssertionError, match=r"expected no contact, found contacts in \d+ step\(s\) \(1 uncertain\)"):
         assert_no_contact(m, rows, **kw)
+
+
+# ---------------------------------------------------------------- the wrappers' substeps
+
+
+def _walker(**environment_kwargs):
+    from dm_control import suite
+
+    env = suite.load("walker", "walk", task_kwargs={"random": 0}, environment_kwargs=environment_kwargs)
+    env.reset()
+    return env
+
+
+def _dm_state(physics):
+    d = physics.data.ptr
+    return b"".join(a.tobytes() for a in (d.qpos, d.qvel, d.act, d.qacc_warmstart, d.xpos, d.xquat, d.sensordata,
+                                          np.array(d.time), d.warning.number))
+
+
+def _substep_hook(physics, states):
+    """Hook ``physics.step`` to take one ``physics.step(1)`` at a time (the per-substep check dm-control's own
+    step gives), keeping the state after each in ``states``."""
+    original = physics.step
+
+    def one_at_a_time(nstep=1):
+        for _ in range(nstep):
+            original(1)
+            states.append(capture(physics.data.ptr))
+    physics.step = one_at_a_time
+
+
+@pytest.mark.dm_control
+@pytest.mark.parametrize("kind", ["legacy", "legacy RK4", "mj_step"])
+def test_dm_control_wrapper_steps_the_physics_bit_for_bit_as_the_plain_environment(kind):
+    """The wrapped environment's physics (positions, velocities, warm start, body poses, sensors, time) equals
+    the plain environment's after every control step, bit for bit, for each kind of dm-control step; its
+    observation too, the ccd/* entries added."""
+    from mjccd.dm_control import OBSERVATION_KEYS, CCDWrapper
+
+    kwargs = {} if kind != "mj_step" else {"legacy_step": False}
+    plain, inner = _walker(**kwargs), _walker(**kwargs)
+    if kind == "legacy RK4":
+        for env in (plain, inner):
+            env.physics.model.opt.integrator = mujoco.mjtIntegrator.mjINT_RK4
+    wrapped = CCDWrapper(inner)
+    assert wrapped._substeps is None
+    actions = np.random.default_rng(0).uniform(-1, 1, (40, 6))
+    contacts = 0
+    for action in actions:
+        a, b = plain.step(action), wrapped.step(action)
+        assert _dm_state(plain.physics) == _dm_state(inner.physics)
+        assert set(b.observation) == set(a.observation) | set(OBSERVATION_KEYS)
+        for key, value in a.observation.items():
+            assert np.asarray(value).tobytes() == np.asarray(b.observation[key]).tobytes()
+        assert len(wrapped.last_reports) == 10
+        contacts += len(wrapped.last_contacts)
+    assert wrapped._substeps.bodies_current == (kind != "mj_step") and contacts > 0
+
+
+@pytest.mark.dm_control
+def test_dm_control_wrapper_reports_what_the_monitor_finds_between_the_substep_states():
+    """The wrapper's contacts (end poses read off dm-control's own kinematics, the check in one compiled call)
+    are what the adapter finds between the states of the same substeps, taken one physics.step(1) at a time."""
+    from dm_control import suite
+
+    from mjccd.dm_control import CCDWrapper
+
+    def humanoid():
+        env = suite.load("humanoid", "run", task_kwargs={"random": 1})
+        env.reset()
+        return env
+
+    reference, inner = humanoid(), humanoid()
+    wrapped = CCDWrapper(inner)
+    adapter = wrapped.monitor.adapter
+    states = [capture(reference.physics.data.ptr)]
+    _substep_hook(reference.physics, states)
+    spec = reference.action_spec()
+    found = 0
+    for action in np.random.default_rng(1).uniform(spec.minimum, spec.maximum, (12, len(spec.minimum))):
+        reference.step(action)
+        wrapped.step(action)
+        expected = [adapter.check(s0, s1).first for s0, s1 in zip(states[-6:-1], states[-5:])]
+        got = [r.first for r in wrapped.last_reports]
+        assert len(got) == 5
+        for e, g in zip(expected, got):
+            assert (e is None) == (g is None)
+            if e is not None:
+                found += 1
+                assert (g.time, g.fraction, g.bodies, g.ellipsoids, g.status_at_start, g.certainty, g.pair, g.geom) \
+                    == (e.time, e.fraction, e.bodies, e.ellipsoids, e.status_at_start, e.certainty, e.pair, e.geom)
+                for x, y in ((g.point, e.point), (g.normal, e.normal)):
+                    assert (x is None and y is None) or x.tobytes() == y.tobytes()
+        assert wrapped.last_contacts == [r.first for r in wrapped.last_reports if r.first is not None]
+        assert _dm_state(reference.physics) == _dm_state(inner.physics)
+    assert found > 20
+
+
+@pytest.mark.dm_control
+@pytest.mark.parametrize("how", ["class", "instance"])
+def test_dm_control_wrapper_steps_a_physics_with_its_own_step_through_it(how):
+    """A physics class with its own ``step``, or a physics whose ``step`` another wrapper hooked, is stepped by
+    it, one timestep at a time."""
+    from mjccd.dm_control import CCDWrapper
+
+    plain, inner = _walker(), _walker()
+    calls = []
+    if how == "class":
+        class Counting(type(inner.physics)):
+            def step(self, nstep=1):
+                calls.append(nstep)
+                super().step(nstep)
+
+        inner.physics.__class__ = Counting
+    else:
+        original = inner.physics.step
+
+        def counting(nstep=1):
+            calls.append(nstep)
+            original(nstep)
+        inner.physics.step = counting
+    wrapped = CCDWrapper(inner)
+    for action in np.random.default_rng(0).uniform(-1, 1, (5, 6)):
+        plain.step(action)
+        wrapped.step(action)
+        assert _dm_state(plain.physics) == _dm_state(inner.physics)
+        assert len(wrapped.last_reports) == 10
+    assert calls == [1] * 50  # and the physics keeps its step (the hook left as it was)
+    assert vars(inner.physics).get("step") is (counting if how == "instance" else None)
+
+
+MOCAP = """
+<mujoco>
+ <worldbody>
+  <body name="hand" mocap="true" pos="0 0 1"><geom type="ellipsoid" size="0.1 0.05 0.03"/></body>
+  <body name="ball" pos="0.3 0 1"><freejoint/><geom type="sphere" size="0.05"/></body>
+ </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("xml", [ARM, MOCAP], ids=["arm", "mocap"])
+def test_step_check_reads_current_body_poses_as_its_own_kinematics_computes_them(xml):
+    """StepCheck.end with ``bodies_current`` (the data's own body poses after mj_step1) records the same poses, bit
+    for bit, as forward kinematics on its private data."""
+    from mjccd.mujoco.monitor import StepCheck
+
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    ellipsoids = fit_model(m)
+    own, read = (StepCheck(CCDMonitor(m, d, ellipsoids, pairs="characters")) for _ in range(2))
+    rng = np.random.default_rng(0)
+    d.qvel[:] = rng.normal(size=m.nv)
+    mujoco.mj_step1(m, d)
+    for _ in range(20):
+        own.begin(d)
+        read.begin(d)
+        d.mocap_pos[:] += rng.normal(scale=0.01, size=d.mocap_pos.shape)
+        mujoco.mj_step2(m, d)
+        mujoco.mj_step1(m, d)
+        own.end(d)
+        read.end(d, bodies_current=True)
+        assert own.poses[1].tobytes() == read.poses[1].tobytes()
+        assert own.poses[0].tobytes() == read.poses[0].tobytes()
+        assert own.poses[1].tobytes() != own.poses[0].tobytes()
+
+
+@pytest.mark.dm_control
+def test_dm_control_wrapper_raises_a_physics_error_right_after_the_substep_that_warned():
+    """A NaN action: the PhysicsError of dm-control's own check, after the first substep, as when the physics is
+    stepped one physics.step(1) at a time; the state then is the same, and the next steps go on alike."""
+    from dm_control.rl.control import PhysicsError
+
+    from mjccd.dm_control import CCDWrapper
+
+    reference, inner = _walker(), _walker()
+    _substep_hook(reference.physics, [])
+    wrapped = CCDWrapper(inner)
+    nan = np.full(6, np.nan)
+    for env in (reference, wrapped):
+        env.step(np.zeros(6))
+        with pytest.raises(PhysicsError) as raised:
+            env.step(nan)
+        assert str(raised.value) == "Physics state is invalid. Warning(s) raised: mjWARN_BADCTRL"
+    timestep = inner.physics.model.opt.timestep  # one control step of 10 substeps, then the substep that warned
+    assert inner.physics.data.time == pytest.approx(11 * timestep) and len(wrapped.last_reports) == 10
+    assert _dm_state(reference.physics) == _dm_state(inner.physics)
+    for env in (reference, wrapped):
+        env.step(np.full(6, 0.5))
+    assert _dm_state(reference.physics) == _dm_state(inner.physics)
+
+
+@pytest.mark.dm_control
+def test_dm_control_wrapper_logs_each_warning_substep_where_the_physics_suppresses_errors(monkeypatch):
+    """Errors suppressed: dm-control's warning is logged once per substep that raised one, the same lines as one
+    physics.step(1) at a time logs, and the step runs to its end (each substep checked: not unstable)."""
+    from dm_control.mujoco import engine
+
+    from mjccd.dm_control import CCDWrapper
+
+    logged = []
+    monkeypatch.setattr(engine.logging, "warn", logged.append)
+    reference, inner = _walker(), _walker()
+    _substep_hook(reference.physics, [])
+    wrapped = CCDWrapper(inner)
+    nan = np.full(6, np.nan)
+    lines = []
+    for env in (reference, wrapped):
+        with env.physics.suppress_physics_errors():
+            for action in (np.zeros(6), nan, np.zeros(6), nan):
+                env.step(action)
+        lines.append(list(logged))
+        logged.clear()
+    assert lines[0] == lines[1] == ["Physics state is invalid. Warning(s) raised: mjWARN_BADCTRL"] * 20
+    assert _dm_state(reference.physics) == _dm_state(inner.physics)
+    assert len(wrapped.last_reports) == 10 and not wrapped.last_unstable
+
+
+def _cheetah_class():
+    pytest.importorskip("gymnasium")
+    try:
+        from gymnasium.envs.mujoco import half_cheetah_v5
+    except Exception as exc:  # gymnasium without its MuJoCo environments
+        pytest.skip(f"HalfCheetah-v5: {exc}")
+    return half_cheetah_v5.HalfCheetahEnv
+
+
+def _gym_state(env):
+    d = env.unwrapped.data
+    return b"".join(a.tobytes() for a in (d.qpos, d.qvel, d.qacc_warmstart, d.cacc, d.cfrc_int, d.cfrc_ext,
+                                          np.array(d.time)))
+
+
+@pytest.mark.parametrize("how", ["own", "class", "instance"])
+def test_gymnasium_wrapper_steps_the_simulation_bit_for_bit_as_the_plain_environment(how):
+    """Wrapped or not, the same states after every step (positions, velocities, derived forces, time), the same
+    observations and rewards; an environment with its own stepping (its class's, or another wrapper's hook of its
+    do_simulation) is stepped through it, a step at a time, and keeps its hook."""
+    from mjccd.mujoco.gym import CCDGymWrapper
+
+    cheetah = _cheetah_class()
+    calls = []
+
+    class Counting(cheetah):
+        def _step_mujoco_simulation(self, ctrl, n_frames):
+            calls.append(n_frames)
+            super()._step_mujoco_simulation(ctrl, n_frames)
+
+    make = Counting if how == "class" else cheetah
+    plain, inner = make(), make()
+    for env in (plain, inner):
+        env.reset(seed=0)
+    if how == "instance":
+        original = inner.do_simulation
+
+        def hook(ctrl, n_frames):
+            calls.append(n_frames)
+            original(ctrl, n_frames)
+        inner.do_simulation = hook
+    wrapped = CCDGymWrapper(inner)
+    assert wrapped._own_stepping is (how != "class")
+    contacts = 0
+    for action in np.random.default_rng(0).uniform(-1, 1, (30, 6)):
+        a, b = plain.step(action), wrapped.step(action)
+        assert a[0].tobytes() == b[0].tobytes() and a[1:4] == b[1:4]
+        assert _gym_state(plain) == _gym_state(inner)
+        assert len(b[4]["ccd"]["reports"]) == 5
+        contacts += len(b[4]["ccd"]["contacts"])
+    assert contacts > 0
+    assert calls == {"own": [], "class": [5, 1, 1, 1, 1, 1] * 30, "instance": [1] * 150}[how]
+    assert vars(inner).get("do_simulation") is (hook if how == "instance" else None)

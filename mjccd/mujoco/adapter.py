@@ -16,6 +16,7 @@ Answers come back as :class:`StepReport` and :class:`StepContact` in simulation 
 import math
 import pathlib
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from functools import cached_property
 
@@ -28,7 +29,7 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.motion import Affine, Rigid
 from mjccd.plane import Plane, plane_first_contact
 from mjccd.quadric import Ellipsoid, static_status_code
-from mjccd.scene import FrameCounters, Scene
+from mjccd.scene import OVERLAP_T0, FrameCounters, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
 from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state
@@ -50,6 +51,30 @@ def plane_clearance(radii, pose, plane):
 
 
 COUNTER_NAMES = tuple(f.name for f in fields(FrameCounters))  # the counters every check reports
+_COUNTER_INDEX = {name: k for k, name in enumerate(COUNTER_NAMES)}
+
+
+class StepCounters(Mapping):
+    """The pair outcome counters of one check, read-only: :class:`mjccd.scene.FrameCounters` field names (in
+    that order) to counts.  It keeps the counts as one list, made once per check, and equals the dict of the
+    same counts."""
+
+    __slots__ = ("_counts",)
+
+    def __init__(self, counts):
+        self._counts = counts
+
+    def __getitem__(self, name):
+        return self._counts[_COUNTER_INDEX[name]]
+
+    def __iter__(self):
+        return iter(COUNTER_NAMES)
+
+    def __len__(self):
+        return len(COUNTER_NAMES)
+
+    def __repr__(self):
+        return repr(dict(self))
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,7 +127,7 @@ class StepReport:
     autoreset is disabled, reset the data: the jump back to the reset pose is no motion, so nothing
     is checked across it (no contact, no pair counted), as :class:`~mjccd.mujoco.GuardReport` reports it.
     ``counters`` (when the check gives them): the pair outcomes as :class:`mjccd.scene.FrameCounters`
-    field names to counts.
+    field names to counts, a read-only mapping (:class:`StepCounters`).
     """
 
     first: object
@@ -208,8 +233,11 @@ class ModelAdapter:
         self.chain_filter = cb.ChainFilter(self.chains.program, self.radii, self.pairs) \
             if motion == "chain" and chain_filters and len(self.pairs) else None
         self._cached = None  # (state, poses) of the last end state
-        # the scene's pair outcome counters of its last check (its own buffer, read after each check)
-        self._counters = self.scene.workspace.arrays.counters if self.scene is not None else None
+        # the scene's per-pair answers and outcome counters of its last check (its own buffers, read after each)
+        self._answers = self.scene.workspace.arrays if self.scene is not None else None
+        self._counters = self._answers.counters if self.scene is not None else None
+        # per pair index (pairs, then plane pairs): (body labels, body ids, ellipsoids, plane geom) of its contacts
+        self._contact_parts = [self._parts_of(k) for k in range(len(self.pairs) + len(self.plane_pairs))]
 
     def _static_planes(self, plane_pairs):
         """``(plane_pairs (Q, 2) (ellipsoid, geom), planes (K, 4) [n, offset], rows (Q, 2) (ellipsoid, plane))``
@@ -234,6 +262,16 @@ class ModelAdapter:
         index = {g: k for k, g in enumerate(geoms)}
         scene_rows = np.array([(e, index[g]) for e, g in rows.tolist()], dtype=np.int64).reshape(-1, 2)
         return rows, planes, scene_rows
+
+    def _parts_of(self, k):
+        """(body labels, body ids, ellipsoids, plane geom or -1) of pair index k, as its contacts report them."""
+        if k < len(self.pairs):
+            i, j, g = int(self.pairs[k, 0]), int(self.pairs[k, 1]), -1
+            a, b = int(self.body_ids[i]), int(self.body_ids[j])
+        else:
+            i, g = (int(x) for x in self.plane_pairs[k - len(self.pairs)])
+            j, a, b = -1, int(self.body_ids[i]), int(self.model.geom_bodyid[g])
+        return (self.labels[a], self.labels[b]), (a, b), (i, j), g
 
     @cached_property
     def chains(self):
@@ -295,7 +333,7 @@ class ModelAdapter:
         states as the caller knows them, for errors.
         """
         if len(self.pairs) == 0 and len(self._plane_rows) == 0:
-            return StepReport(None, (), 0, 0, 0, False, dict.fromkeys(COUNTER_NAMES, 0))
+            return StepReport(None, (), 0, 0, 0, False, StepCounters([0] * len(COUNTER_NAMES)))
         if poses is None:
             poses = (self.poses(s0), self.kinematics.ellipsoid_poses(s1, self.body_ids, self.ellipsoids.positions,
                                                                      self.ellipsoids.quaternions))
@@ -312,44 +350,33 @@ class ModelAdapter:
         knows it; else separate when there is a point or an uncertain contact after the start, and the
         static status of the start poses otherwise.
         """
-        if k >= len(self.pairs):
-            return self._plane_contact(t0, t1, k, fraction, point, normal, poses0, bracket, status)
-        i, j = int(self.pairs[k, 0]), int(self.pairs[k, 1])
+        k = int(k)
+        bodies, body_ids, ellipsoids, geom = self._contact_parts[k]
         if status is None:
             if point is None and (bracket is None or bracket[1] == 0.0):
-                r = self.radii
-                status = STATUS[static_status_code(r[i], poses0[i, :3], poses0[i, 3:],
-                                                   r[j], poses0[j, :3], poses0[j, 3:])]
-                status = "touching" if status == "separate" else status
+                status = self._start_status(k, poses0)
             else:
                 status = "separate"
-        a, b = int(self.body_ids[i]), int(self.body_ids[j])
         seconds = None if bracket is None else (float(self._seconds(t0, t1, bracket[0])),
                                                 float(self._seconds(t0, t1, bracket[1])))
-        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
-                           (self.labels[a], self.labels[b]), (a, b), (i, j),
+        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction), bodies, body_ids, ellipsoids,
                            None if point is None else np.array(point, float),
                            None if normal is None else np.array(normal, float), status,
-                           "certified" if bracket is None else "uncertain", seconds, int(k))
+                           "certified" if bracket is None else "uncertain", seconds, k, geom)
 
-    def _plane_contact(self, t0, t1, k, fraction, point, normal, poses0, bracket, status):
-        """:meth:`contact` of plane pair ``k`` (``len(pairs)`` + its row in ``plane_pairs``)."""
-        row = k - len(self.pairs)
-        i, g = int(self.plane_pairs[row, 0]), int(self.plane_pairs[row, 1])
-        if status is None:
-            if point is None and (bracket is None or bracket[1] == 0.0):
-                plane = self.planes[int(self._plane_rows[row, 1])]
-                status = "touching" if plane_clearance(self.radii[i], poses0[i], plane) >= 0.0 else "overlapping"
-            else:
-                status = "separate"
-        a, b = int(self.body_ids[i]), int(self.model.geom_bodyid[g])
-        seconds = None if bracket is None else (float(self._seconds(t0, t1, bracket[0])),
-                                                float(self._seconds(t0, t1, bracket[1])))
-        return StepContact(float(self._seconds(t0, t1, fraction)), float(fraction),
-                           (self.labels[a], self.labels[b]), (a, b), (i, -1),
-                           None if point is None else np.array(point, float),
-                           None if normal is None else np.array(normal, float), status,
-                           "certified" if bracket is None else "uncertain", seconds, int(k), g)
+    def _start_status(self, k, poses0):
+        """The static status at the step start of pair ``k``, which is in contact then: "touching" or
+        "overlapping" (a pair of ellipsoids whose status comes out separate touches within the solver's
+        precision)."""
+        if k >= len(self.pairs):
+            row = k - len(self.pairs)
+            i = int(self.plane_pairs[row, 0])
+            plane = self.planes[int(self._plane_rows[row, 1])]
+            return "touching" if plane_clearance(self.radii[i], poses0[i], plane) >= 0.0 else "overlapping"
+        i, j = int(self.pairs[k, 0]), int(self.pairs[k, 1])
+        r = self.radii
+        status = STATUS[static_status_code(r[i], poses0[i, :3], poses0[i, 3:], r[j], poses0[j, :3], poses0[j, 3:])]
+        return "touching" if status == "separate" else status
 
     def _seconds(self, t0, t1, fraction):
         """Simulation time at ``fraction`` of a step from ``t0`` to ``t1`` (either None: unknown)."""
@@ -393,22 +420,36 @@ class ModelAdapter:
         :meth:`check` answers for the two states, for callers that hold the poses (the monitor's steps).
         ``all_pairs``, ``new_only`` as in :meth:`check`; a bad pose raises the scene's InputError."""
         scene = self.scene
-        if all_pairs:
-            frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)
-            first = None if frame.first is None else self._converted(t0, t1, frame.first, p0)
-            contacts = tuple(sorted((self._converted(t0, t1, c, p0) for c in frame.contacts),
-                                    key=lambda c: c.fraction))
-        else:
-            hit = scene.first_contact(p0, p1, new_contacts_only=new_only)
-            first = None if hit is None else self._converted(t0, t1, hit, p0)
-            contacts = ()
-        counters = dict(zip(COUNTER_NAMES, self._counters.tolist()))
-        return StepReport(first, contacts, counters["pairs"], counters["solved_exactly"], counters["uncertain"],
-                          False, counters)
+        if not all_pairs:
+            return self.scene_report(t0, t1, scene.first_pair(p0, p1, new_contacts_only=new_only), p0)
+        frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)
+        first = None if frame.first is None else self._converted(t0, t1, frame.first, p0)
+        contacts = tuple(sorted((self._converted(t0, t1, c, p0) for c in frame.contacts), key=lambda c: c.fraction))
+        counters = self._counters.tolist()
+        return StepReport(first, contacts, counters[0], counters[5], counters[8], False, StepCounters(counters))
+
+    def scene_report(self, t0, t1, best_k, p0):
+        """The :class:`StepReport` of the scene's last first-contact check (of a step from time ``t0`` to ``t1``
+        from ellipsoid poses ``p0``), read off its workspace: ``best_k`` is the first pair (-1: none), as
+        :meth:`mjccd.scene.Scene.first_pair` and :func:`~mjccd.mujoco.motions.poses_then_first` answer."""
+        counters = self._counters.tolist()  # pairs, ..., solved_exactly (5), ..., uncertain (8): FrameCounters' order
+        first = None
+        if best_k >= 0:
+            a = self._answers
+            if a.outcome[best_k] == OVERLAP_T0:  # in contact at t = 0, proven by the scene's static test
+                first = self.contact(t0, t1, best_k, 0.0, None, None, p0, status="overlapping")
+            else:
+                first = self._converted(t0, t1, first_of(best_k, a.outcome, a.times, a.times_hi, a.points,
+                                                         a.normals), p0)
+        return StepReport(first, (), counters[0], counters[5], counters[8], False, StepCounters(counters))
 
     def _converted(self, t0, t1, hit, p0):
-        """The :class:`StepContact` of a scene contact (``FirstContact`` or ``PairContact``)."""
-        return self.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket)
+        """The :class:`StepContact` of a scene contact (``FirstContact``, ``PairContact`` or ``PlaneContact``) of
+        the scene's last check: a pair that its outcome proves in contact at t = 0 is overlapping (the static
+        status the scene's kernel computed: for a plane, the ellipsoid reaching below it by more than a
+        relative 1e-9)."""
+        status = "overlapping" if self._answers.outcome[hit.pair] == OVERLAP_T0 else None
+        return self.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket, status)
 
     def _check_chain(self, s0, s1, poses, names, all_pairs, new_only):
         """Chain motions: the chain filters, then the exact solver pair by pair."""
@@ -494,4 +535,5 @@ class ModelAdapter:
         contacts.sort(key=lambda c: c.fraction)
         first = contacts[0] if contacts else None
         return StepReport(first, tuple(contacts) if all_pairs else (), counters["pairs"],
-                          counters["solved_exactly"], counters["uncertain"], False, counters)
+                          counters["solved_exactly"], counters["uncertain"], False,
+                          StepCounters([counters[name] for name in COUNTER_NAMES]))

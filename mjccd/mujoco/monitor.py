@@ -1,7 +1,6 @@
 """CCDMonitor: the exact first contact of every MuJoCo step between fitted ellipsoids."""
 import math
 import warnings
-from types import MappingProxyType
 
 import mujoco
 import numpy as np
@@ -9,11 +8,12 @@ import numpy as np
 from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
-                                  StepContact, StepReport)
+                                  StepContact, StepCounters, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
-from mjccd.mujoco.motions import MOTIONS, as_state, capture, ellipsoid_poses_into, poses_then_may_touch
+from mjccd.mujoco.motions import (MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state, capture,
+                                  ellipsoid_poses_into, poses_then_first, poses_then_may_touch)
 
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
                    | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
@@ -23,7 +23,7 @@ BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN
                       mujoco.mjtWarning.mjWARN_BADQACC)
 BAD_COUNTS = slice(int(BAD_STATE_WARNINGS[0]), int(BAD_STATE_WARNINGS[-1]) + 1)  # adjacent in mjtWarning
 # what every step of a monitor without pairs reports (the pairs' selection warned why there are none)
-NO_PAIR_REPORT = StepReport(None, (), 0, 0, 0, False, MappingProxyType(dict.fromkeys(COUNTER_NAMES, 0)))
+NO_PAIR_REPORT = StepReport(None, (), 0, 0, 0, False, StepCounters([0] * len(COUNTER_NAMES)))
 
 
 def step_count(value, field):
@@ -61,10 +61,17 @@ def went_bad(data, counts, counts_before, time_before):
     """
     if counts.tobytes() != counts_before or data.time <= time_before:
         return True
-    # one finite sum of squares for all: MuJoCo warns of any |qpos| or |qvel| above 1e10, so a sound state
-    # cannot overflow it, and a NaN or infinity makes it non-finite
+    return not state_finite(data)
+
+
+def state_finite(data):
+    """False when a position or velocity of ``data`` is NaN or infinite.
+
+    One finite sum of squares for all: MuJoCo warns of any |qpos| or |qvel| above 1e10, so a sound state
+    cannot overflow it, and a NaN or infinity makes it non-finite.
+    """
     qpos, qvel = data.qpos, data.qvel
-    return not math.isfinite(qpos.dot(qpos) + qvel.dot(qvel))
+    return math.isfinite(qpos.dot(qpos) + qvel.dot(qvel))
 
 
 def check_simulation(model, data):
@@ -127,6 +134,9 @@ class CCDMonitor:
         # no pair and no plane: a step is the step alone (see advance_checked)
         self._idle = len(self.pairs) == 0 and len(self.plane_pairs) == 0
         self._poses = None  # the StepCheck that keeps the poses of advance_checked's steps (scene motions)
+        # the data whose warning counts _warnings views (MjData arrays: views, fetched once), the bad-state ones
+        # (_bad) and where they lie in the bytes of all (_bad_bytes)
+        self._watched = self._warnings = self._bad = self._bad_bytes = None
 
     @property
     def scene(self):
@@ -158,44 +168,80 @@ class CCDMonitor:
                                           any(r.unstable for r in reports))
         return first
 
-    def advance_checked(self, advance, step_name="the step"):
+    def advance_checked(self, advance, step_name="the step", *, bodies_current=False):
         """Take one simulator step with ``advance()`` and check it: its :class:`StepReport` (also ``last_report``).
 
         The monitor's own steps and the wrappers' substeps all go through here.  A step in which
         MuJoCo met a bad state (:func:`went_bad`) is reported unstable and not checked: the jump to the
         reset pose is no motion.  ``step_name`` names the step in errors ("step 2 of 5").
+        ``bodies_current``: ``advance()`` leaves the data's body poses (``xpos``, ``xquat``) those of its
+        new positions, as dm-control's legacy step does (it ends with ``mj_step1``); the end poses are then
+        read off them instead of forward kinematics on a private ``MjData`` (the same kinematics, so the
+        same poses bit for bit).
         """
         d = self.data
-        counts = d.warning.number[BAD_COUNTS]
+        if d is not self._watched:
+            self._watch(d)
+        counts = self._warnings
         counts_before, time_before = counts.tobytes(), d.time
         if self._idle:  # no pair to check: no state copies, no kinematics, only MuJoCo's bad-state test
             advance()
-            self.last_report = UNSTABLE_REPORT if went_bad(d, counts, counts_before, time_before) else NO_PAIR_REPORT
+            self.last_report = UNSTABLE_REPORT if went_bad(d, self._bad, counts_before[self._bad_bytes], time_before) \
+                else NO_PAIR_REPORT
             return self.last_report
         poses = self._poses
         if poses is None and self.adapter.scene is not None:
             poses = self._poses = StepCheck(self)
         if poses is None:
             s0 = capture(d)
-        else:  # rigid and affine motions: the poses of both ends by one compiled call each, no state copies
+        else:  # rigid and affine motions: the poses of both ends by compiled calls, no state copies
             poses.begin(d)
         advance()
-        if went_bad(d, counts, counts_before, time_before):
-            self.adapter.forget()
-            self.last_report = UNSTABLE_REPORT
-            return UNSTABLE_REPORT
-        names = (f"data before {step_name}", f"data after {step_name}")
+        # went_bad's warning and time tests (any warning, then the bad-state ones): the state's own is compiled
+        if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
+                or d.time <= time_before:
+            return self._unstable()
         if poses is None:
-            return self._check(s0, capture(d), names)
-        poses.end(d)
-        try:
+            if not state_finite(d):
+                return self._unstable()
+            return self._check(s0, capture(d), self._names(step_name))
+        if not self.all_pairs:
+            best = poses.end_first(d, bodies_current, not self.report_overlapping)
+            if best == STATE_NOT_FINITE:
+                return self._unstable()
+            if best != POSES_NOT_ORDINARY:
+                return self._reported(self.adapter.scene_report(time_before, d.time, best, poses.poses[0]))
+        else:
+            if not state_finite(d):
+                return self._unstable()
+            poses.end(d, bodies_current)
+        try:  # all pairs, or poses the compiled split cannot take: the scene's checked entry
             report = self.adapter.check_poses(time_before, d.time, *poses.poses, all_pairs=self.all_pairs,
                                               new_only=not self.report_overlapping)
         except InputError:  # a pose that is not finite: named in the user's terms
             s1 = capture(d)
-            self.adapter.check_finite((s1, s1), poses.poses, names)
+            self.adapter.check_finite((s1, s1), poses.poses, self._names(step_name))
             raise
         return self._reported(report)
+
+    def _watch(self, data):
+        """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones) once per data."""
+        self._warnings = data.warning.number
+        self._bad = self._warnings[BAD_COUNTS]
+        size = self._warnings.itemsize
+        self._bad_bytes = slice(BAD_COUNTS.start * size, BAD_COUNTS.stop * size)
+        self._watched = data
+
+    @staticmethod
+    def _names(step_name):
+        """The data before and after the step ``step_name``, as errors name them."""
+        return f"data before {step_name}", f"data after {step_name}"
+
+    def _unstable(self):
+        """The report of a step in which MuJoCo met a bad state: nothing checked, the remembered state dropped."""
+        self.adapter.forget()
+        self.last_report = UNSTABLE_REPORT
+        return UNSTABLE_REPORT
 
     def check(self, state_t0, state_t1):
         """First contact while moving from state_t0 to state_t1 (``MjData``, :class:`State` or qpos).
@@ -259,6 +305,15 @@ class StepCheck:
         self._local = np.ascontiguousarray(np.hstack([self.positions, self.quaternions]))
         self.scene = monitor.scene
         self._workspace = self.scene.workspace
+        self._no_intervals = (np.empty((0, 2)), np.empty(0, dtype=np.int64))  # (a first-contact check writes none)
+        self._views_of, self._views = None, None  # a data and its (qpos, qvel, xpos, xquat): fetched once per data
+
+    def _views_for(self, data):
+        """(qpos, qvel, xpos, xquat) of ``data`` (MjData arrays are views of its memory: fetched once per data)."""
+        if data is not self._views_of:
+            self._views = (data.qpos, data.qvel, data.xpos, data.xquat)
+            self._views_of = data
+        return self._views
 
     def _state_of(self, data):
         """The kinematic state of ``data`` (``KINEMATIC_STATE`` layout; a view of its qpos when that is all)."""
@@ -304,9 +359,11 @@ class StepCheck:
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
 
-    def _record_end(self, data):
+    def _record_end(self, data, bodies_current=False):
         """Record the state of ``data`` as the end of the step begun last: the index of the slot whose poses
-        are still to be computed from its kinematics, or None when it is the start state (poses known)."""
+        are still to be computed, or None when it is the start state (poses known).  The body poses to
+        compute them from are those of the slot's private data after its kinematics, or with
+        ``bodies_current`` (``data``'s own are those of its state) ``data``'s."""
         state = self._state_of(data)
         kb = state.tobytes()
         start = self._start
@@ -314,16 +371,36 @@ class StepCheck:
             self._end = start
             return None
         idx = 1 - start
-        self._fill(idx, kb, state)
+        if bodies_current:
+            self._slots[idx][1] = kb
+        else:
+            self._fill(idx, kb, state)
         self._end = idx
         return idx
 
-    def end(self, data):
-        """Record the state at the end of the step begun last (its poses: :attr:`poses`)."""
-        idx = self._record_end(data)
+    def end(self, data, bodies_current=False):
+        """Record the state at the end of the step begun last (its poses: :attr:`poses`); ``bodies_current``:
+        the body poses of ``data`` are those of its state (read instead of computed)."""
+        idx = self._record_end(data, bodies_current)
         if idx is not None:
-            xpos, xquat = self._xposes[idx]
+            xpos, xquat = self._views_for(data)[2:] if bodies_current else self._xposes[idx]
             ellipsoid_poses_into(xpos, xquat, self.body_ids, self.positions, self.quaternions, self._slots[idx][2])
+
+    def end_first(self, data, bodies_current=False, new_only=False):
+        """Record the state at the end of the step begun last, then the scene's first-contact check of the step
+        (:meth:`mjccd.scene.Scene.first_pair` with ``new_contacts_only=new_only``), all compiled parts in one call
+        (:func:`~mjccd.mujoco.motions.poses_then_first`): the first pair's index (-1: none; the answer in the
+        scene's workspace), ``STATE_NOT_FINITE`` when a position or velocity of ``data`` is NaN or infinite, or
+        ``POSES_NOT_ORDINARY`` (the scene's checked entry then names the bad pose).  ``bodies_current`` as in
+        :meth:`end`."""
+        qpos, qvel, xpos, xquat = self._views_for(data)
+        idx = self._record_end(data, bodies_current)
+        if idx is not None and not bodies_current:
+            xpos, xquat = self._xposes[idx]
+        slots = self._slots
+        iv, owner = self._no_intervals
+        return poses_then_first(qpos, qvel, xpos, xquat, self.body_ids, self._local, slots[self._start][2],
+                                slots[self._end][2], idx is not None, self._workspace, iv, owner, new_only)
 
     def end_may_touch(self, data):
         """Record the state at the end of the step begun last, then :meth:`may_touch` (one compiled call

@@ -7,10 +7,13 @@ import numpy as np
 
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
-from mjccd.scene import poses_may_touch
+from mjccd.scene import field, poses_may_touch, split_poses, step_kernel
 from mjccd.mujoco.chains import hinge_path
 
 MOTIONS = ("rigid", "affine", "chain")
+# what poses_then_first answers instead of a pair index (-1: no contact)
+STATE_NOT_FINITE = -3   # a position or velocity of the state is NaN or infinite: nothing checked
+POSES_NOT_ORDINARY = -2  # a pose is not finite or not ordinary: nothing checked (the scene's own check names it)
 
 
 @dataclass(frozen=True)
@@ -159,3 +162,31 @@ def poses_then_may_touch(xpos, xquat, body_ids, local, p0, p1, workspace):
     from ``p0``: the compiled part of a step check in one call."""
     ellipsoid_poses_into(xpos, xquat, body_ids, local[:, :3], local[:, 3:], p1)
     return poses_may_touch(workspace, p0, p1)
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def poses_then_first(qpos, qvel, xpos, xquat, body_ids, local, p0, p1, fill, ws, iv, owner, new_only):
+    """The compiled part of a monitored step in one call: the end poses, the state's test, the scene's check.
+
+    With ``fill``, :func:`ellipsoid_poses_into` writes the end poses ``p1`` from the body poses ``xpos``,
+    ``xquat`` (``local`` = [positions, quaternions]).  Then :data:`STATE_NOT_FINITE` when the sum of squares
+    of ``qpos`` and ``qvel`` is not finite (as :func:`mjccd.mujoco.monitor.went_bad` tests it), else the poses
+    ``p0``, ``p1`` split into the workspace ``ws`` as :meth:`mjccd.scene.Scene.first_pair` splits them
+    (:data:`POSES_NOT_ORDINARY` when that cannot be done) and :func:`mjccd.scene.step_kernel`'s first contact
+    (``iv``, ``owner``: its interval buffers, not written): the first pair's index, -1 when none, the
+    answer in the workspace's arrays.
+    """
+    if fill:
+        ellipsoid_poses_into(xpos, xquat, body_ids, local[:, :3], local[:, 3:], p1)
+    total = 0.0
+    for v in qpos:
+        total += v * v
+    for v in qvel:
+        total += v * v
+    if not np.isfinite(total):
+        return STATE_NOT_FINITE
+    s0, r0, s1, r1 = field(ws, "p0"), field(ws, "q0"), field(ws, "p1"), field(ws, "q1")
+    if not (split_poses(p0, s0, r0) and split_poses(p1, s1, r1)):
+        return POSES_NOT_ORDINARY
+    best_k, _, _, _ = step_kernel(ws, s0, r0, s1, r1, iv, owner, False, new_only, False)
+    return best_k

@@ -144,44 +144,114 @@ class SubstepRecorder:
         self.contacts = []
         self.reports = []
         self.start_time = 0.0
+        self.unstable = False  # True when MuJoCo met a bad state in one of the steps recorded
+        self._names = []  # "substep k", made once
 
     def begin(self, data):
         self.monitor.data = data
         self.contacts = []
         self.reports = []
         self.start_time = float(data.time)
+        self.unstable = False
 
-    def substep(self, advance):
-        """Advance the simulation by one step with ``advance()`` and check that step."""
-        report = self.monitor.advance_checked(advance, f"substep {len(self.reports) + 1}")
-        self.reports.append(report)
-        found = report.contacts if self.monitor.all_pairs else ((report.first,) if report.first else ())
-        self.contacts.extend(found)
-
-    @property
-    def unstable(self):
-        """True when MuJoCo met a bad state in one of the steps recorded."""
-        return any(r.unstable for r in self.reports)
+    def substep(self, advance, bodies_current=False):
+        """Advance the simulation by one step with ``advance()`` and check that step (``bodies_current``: as
+        :meth:`~mjccd.mujoco.CCDMonitor.advance_checked` takes it)."""
+        reports, names = self.reports, self._names
+        if len(names) == len(reports):
+            names.append(f"substep {len(reports) + 1}")
+        monitor = self.monitor
+        report = monitor.advance_checked(advance, names[len(reports)], bodies_current=bodies_current)
+        reports.append(report)
+        if report.unstable:
+            self.unstable = True
+        if monitor.all_pairs:
+            self.contacts.extend(report.contacts)
+        elif report.first is not None:
+            self.contacts.append(report.first)
 
     def results(self):
         """``(contacts, reports, unstable)`` of the control step: its contacts in time order, each step's
         report, and whether MuJoCo met a bad state."""
-        return sorted(self.contacts, key=lambda c: c.time), list(self.reports), self.unstable
+        return sorted(self.contacts, key=_time_of), list(self.reports), self.unstable
 
     def first(self):
         """The earliest contact of the control step, or None."""
-        return min(self.contacts, key=lambda c: c.time) if self.contacts else None
+        return min(self.contacts, key=_time_of) if self.contacts else None
 
-    def observation(self, model):
-        """The ``ccd/*`` observation entries for the control step just recorded."""
+    def observation(self, model=None):
+        """The ``ccd/*`` observation entries for the control step just recorded (fresh arrays)."""
         c = self.first()
         if c is None:
-            return {"ccd/contact_time": np.array(np.inf), "ccd/contact_pair": np.full(2, -1, np.int32),
-                    "ccd/contact_point": np.zeros(3), "ccd/contact_normal": np.zeros(3)}
+            return {key: value.copy() for key, value in NO_CONTACT.items()}
         return {"ccd/contact_time": np.array(c.time - self.start_time),
                 "ccd/contact_pair": np.array(c.body_ids, np.int32),
                 "ccd/contact_point": np.zeros(3) if c.point is None else c.point.copy(),
                 "ccd/contact_normal": np.zeros(3) if c.normal is None else c.normal.copy()}
+
+
+def _time_of(contact):
+    return contact.time
+
+
+class PhysicsSubsteps:
+    """A dm-control physics stepped one MuJoCo step at a time, as ``physics.step(1)`` steps it, errors included.
+
+    ``advance()`` takes one step as dm-control's ``Physics.step(1)`` takes it (``legacy_step``:
+    ``mj_step2``, or ``mj_step`` with the RK4 integrator, then ``mj_step1``; else ``mj_step``), without
+    its ``check_invalid_state`` context around each step: that check runs only when a MuJoCo warning
+    count changed in the step (one comparison of the counts' bytes), over that step alone, so a
+    ``PhysicsError`` comes right after the step that raised a warning or, where the physics suppresses
+    errors, the warning is logged, as ``physics.step(1)`` does.  A physics whose class steps otherwise
+    (its own ``step``) is stepped by ``original_step(1)``.  ``bodies_current``: the step leaves the
+    data's body poses those of its new positions (the legacy step ends with ``mj_step1``).
+    """
+
+    def __init__(self, physics, original_step):
+        from dm_control.mujoco import engine
+
+        self.physics, self.model, self.data = physics, physics.model.ptr, physics.data.ptr
+        self.legacy, self.integrator = physics.legacy_step, self.model.opt.integrator
+        self._counts = self.data.warning.number
+        if type(physics).step is not engine.Physics.step:
+            self.advance, self.bodies_current = functools.partial(original_step, 1), False
+            return
+        if not self.legacy:
+            self._raw = functools.partial(mujoco.mj_step, self.model, self.data)
+        elif self.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+            self._raw = self._rk4_legacy_step
+        else:
+            self._raw = self._legacy_step
+        self.advance, self.bodies_current = self._step, self.legacy
+
+    def fits(self, physics):
+        """True while this stepper is the one of ``physics`` as it is now (its data, its kind of step)."""
+        return (physics is self.physics and physics.data.ptr is self.data and physics.legacy_step == self.legacy
+                and self.model.opt.integrator == self.integrator)
+
+    def _legacy_step(self):
+        mujoco.mj_step2(self.model, self.data)  # mj_step1 of the state ran at the end of the step before
+        mujoco.mj_step1(self.model, self.data)
+
+    def _rk4_legacy_step(self):
+        mujoco.mj_step(self.model, self.data)
+        mujoco.mj_step1(self.model, self.data)
+
+    def _step(self):
+        counts = self._counts
+        before = counts.tobytes()
+        self._raw()
+        if counts.tobytes() != before:
+            self._physics_check(before)
+
+    def _physics_check(self, before):
+        """dm-control's own ``check_invalid_state`` over the step just taken (``before``: the counts' bytes at
+        its start): its context entered now, its snapshot set back to ``before``, then left."""
+        physics = self.physics
+        check = physics.check_invalid_state()
+        check.__enter__()
+        np.copyto(physics._warnings_before, np.frombuffer(before, dtype=self._counts.dtype))
+        check.__exit__(None, None, None)
 
 
 def substep_monitor(model, data, ellipsoids, per, **options):
@@ -218,11 +288,15 @@ class CCDWrapper(DelegatingEnvironment):
     substeps and ``last_unstable`` whether MuJoCo met a bad state in one of
     them (that substep is not checked; see :attr:`~mjccd.mujoco.StepReport.unstable`).
     As with dm-control's own stepping, such a substep raises ``PhysicsError``
-    unless the physics suppresses errors.  With no pair to check (warned once,
-    when the pairs are chosen) a step is the environment's own step, the
-    no-contact entries (shared read-only arrays) added to the observation it
-    returns: no substep is hooked, no state copied, no kinematics run;
-    ``last_reports`` stays empty and ``last_unstable`` False.
+    unless the physics suppresses errors.  Each substep is one MuJoCo step
+    taken as ``physics.step(1)`` takes it, its warnings checked as that checks
+    them (:class:`PhysicsSubsteps`): a control step leaves the physics bit for
+    bit as the plain environment's does (unless a warning stops it).  With no
+    pair to check (warned once, when the pairs are chosen) a step is the
+    environment's own step, the no-contact entries (shared read-only arrays)
+    added to the observation it returns: no substep is hooked, no state
+    copied, no kinematics run; ``last_reports`` stays empty and
+    ``last_unstable`` False.
 
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
@@ -242,13 +316,15 @@ class CCDWrapper(DelegatingEnvironment):
             all_pairs=all_pairs, report_overlapping=report_overlapping, planes=planes)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
         self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
+        self._substeps = None  # the PhysicsSubsteps of the physics last stepped
 
     def _with_ccd(self, timestep, recorded):
+        entries = self._recorder.observation() if recorded else SubstepRecorder(self.monitor).observation()
+        if isinstance(timestep.observation, dict):  # made afresh for this step (dm-control's tasks): in place
+            timestep.observation.update(entries)
+            return timestep
         obs = collections.OrderedDict(timestep.observation)
-        if recorded:
-            obs.update(self._recorder.observation(self.monitor.model))
-        else:
-            obs.update(SubstepRecorder(self.monitor).observation(self.monitor.model))
+        obs.update(entries)
         return timestep._replace(observation=obs)
 
     def reset(self):
@@ -266,18 +342,28 @@ class CCDWrapper(DelegatingEnvironment):
         if physics.model.ptr is not self.monitor.model:
             raise InputError("env: the physics model was reloaded; wrap the environment again")
         recorder = self._recorder
+        hooked = vars(physics).get("step")
+        if hooked is not None:  # another wrapper's hook of this physics' step: each substep through it
+            advance, bodies_current = functools.partial(hooked, 1), False
+        else:
+            substeps = self._substeps
+            if substeps is None or not substeps.fits(physics):
+                substeps = self._substeps = PhysicsSubsteps(physics, physics.step)
+            advance, bodies_current = substeps.advance, substeps.bodies_current
         recorder.begin(physics.data.ptr)
-        original = physics.step
 
         def checked_step(nstep=1):
             for _ in range(step_count(nstep, "nstep")):
-                recorder.substep(lambda: original(1))
+                recorder.substep(advance, bodies_current)
 
         physics.step = checked_step
         try:
             timestep = self._env.step(action)
         finally:
-            del physics.step
+            if hooked is None:
+                del physics.step
+            else:  # the other wrapper's hook, as it was
+                physics.step = hooked
         self.last_contacts, self.last_reports, self.last_unstable = recorder.results()
         return self._with_ccd(timestep, True)
 

@@ -1,4 +1,11 @@
-"""Input checks shared by the Python layer: every error names the field and the problem."""
+"""Input checks shared by the Python layer: every error names the field and the problem.
+
+Short vectors (positions, quaternions, radii) of plain numbers take a scalar
+fast path in Python floats; anything else, and every input that fails a
+check, goes through the numpy checks, so an error is the same whichever path
+met the input first.
+"""
+import math
 import reprlib
 
 import numpy as np
@@ -19,6 +26,64 @@ of one pair can be: this range keeps any two within 1e24 of each other.
 
 MIN_NORM = 1e-12
 """A quaternion or axis shorter than this is taken for zero (as in :mod:`mjccd.scene`)."""
+
+
+_PLAIN = frozenset((float, int, bool, np.float64))
+"""Element types whose ``float()`` is what ``np.asarray(..., float64)`` makes of them."""
+
+_SHORT = 4
+"""Vectors up to this length take the scalar fast path."""
+
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _floats(value, n):
+    """The n entries of a flat list, tuple or float64 vector of plain numbers, as finite Python floats.
+
+    None when the input is anything else or holds a NaN or infinity (an
+    overflowing sum of finite entries too): the numpy checks then decide,
+    and name what is wrong.
+    """
+    kind = type(value)
+    if kind is np.ndarray:
+        if value.dtype is not _FLOAT64 or value.shape != (n,):
+            return None
+        xs = value.tolist()
+    elif kind is list or kind is tuple:
+        if len(value) != n or not _PLAIN.issuperset(map(type, value)):
+            return None
+        try:
+            xs = list(map(float, value))
+        except OverflowError:
+            return None
+    else:
+        return None
+    total = sum(xs)
+    return xs if total - total == 0.0 else None
+
+
+def plain_floats(values, lengths):
+    """Several short inputs at once (``lengths`` entries each) as one list of finite Python floats, or None.
+
+    For constructors that take a few vectors (a pose, two poses): one pass
+    of the checks of :func:`_floats` over all of them; None sends each input
+    through its own checks, which name the field.
+    """
+    try:
+        for value, n in zip(values, lengths):
+            if len(value) != n:
+                return None
+        xs = [x for value in values for x in value]
+    except TypeError:
+        return None
+    if not _PLAIN.issuperset(map(type, xs)):
+        return None
+    try:
+        xs = list(map(float, xs))
+    except OverflowError:
+        return None
+    total = sum(xs)
+    return xs if total - total == 0.0 else None
 
 
 def _shown(value):
@@ -62,7 +127,17 @@ def scalar(value, field):
 
 def vector(value, n, field):
     """A finite vector of length n."""
+    if n <= _SHORT:
+        xs = _floats(value, n)
+        if xs is not None:
+            return np.array(xs)
     return array(value, (n,), field)
+
+
+def floats(value, n, field):
+    """:func:`vector` as a list of n Python floats (the same checks and messages)."""
+    xs = _floats(value, n) if n <= _SHORT else None
+    return vector(value, n, field).tolist() if xs is None else xs
 
 
 def _check_lengths(r, field):
@@ -75,6 +150,11 @@ def _check_lengths(r, field):
 
 def radii(value, field):
     """Three strictly positive radii inside LENGTH_RANGE."""
+    xs = _floats(value, 3)
+    if xs is not None:
+        lo, hi = LENGTH_RANGE
+        if lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi:
+            return np.array(xs)
     r = vector(value, 3, field)
     if np.any(r <= 0.0):
         raise InputError(f"{field}: radii must be positive, got {r.tolist()}")
@@ -96,6 +176,10 @@ def radii_array(value, field):
 
 def coordinates(value, shape, field):
     """A finite array of the given shape whose entries lie within ±LENGTH_RANGE[1] (positions, displacements)."""
+    if len(shape) == 1 and shape[0] is not None and shape[0] <= _SHORT:
+        xs = _floats(value, shape[0])
+        if xs is not None and max(map(abs, xs)) <= LENGTH_RANGE[1]:
+            return np.array(xs)
     arr = array(value, shape, field)
     hi = LENGTH_RANGE[1]
     outside = arr[np.abs(arr) > hi]
@@ -111,19 +195,42 @@ def direction(value, n, field, zero="zero vector"):
     exact, so normalising the result gives the same bits as normalising the
     input would, without overflow for huge entries (1e300).
     """
-    v = vector(value, n, field)
-    _, exponent = np.frexp(np.abs(v).max())
-    v = np.ldexp(v, -exponent)
-    norm = float(np.ldexp(np.sqrt(v @ v), exponent))
+    return np.array(_direction(value, n, field, zero))
+
+
+def _direction(value, n, field, zero):
+    """:func:`direction` as a list of Python floats."""
+    xs = _floats(value, n) if n <= _SHORT else None
+    if xs is None:
+        xs = vector(value, n, field).tolist()
+    exponent = math.frexp(max(map(abs, xs)))[1]
+    v = [math.ldexp(x, -exponent) for x in xs]
+    norm = math.ldexp(math.hypot(*v), exponent) if exponent <= 0 else math.inf  # at least 0.5 when exponent > 0
     if norm < MIN_NORM:
         raise InputError(f"{field}: {zero} (norm {norm:.3g}, at least {MIN_NORM:g} needed)")
     return v
 
 
+def unit_quaternion(value, field):
+    """:func:`quaternion` as a list of four Python floats.
+
+    The length is ``math.hypot`` (safe from overflow and underflow, and
+    scaled internally by the largest entry's power of two), so the quotients
+    are the same whether or not the input was scaled by :func:`direction` first.
+    """
+    xs = _floats(value, 4)
+    if xs is not None:
+        norm = math.hypot(*xs)
+        if MIN_NORM <= norm < math.inf:
+            return [x / norm for x in xs]
+    v = _direction(value, 4, field, "zero quaternion")
+    norm = math.hypot(*v)
+    return [x / norm for x in v]
+
+
 def quaternion(value, field):
     """A finite, non-zero quaternion [w, x, y, z], returned normalised (a quaternion is only a direction)."""
-    q = direction(value, 4, field, zero="zero quaternion")
-    return q / np.sqrt(q @ q)
+    return np.array(unit_quaternion(value, field))
 
 
 def pose_array(value, field, n=None):

@@ -5,19 +5,29 @@ parsed or solved becomes its result's ``"error": "<case id>: <field path>:
 <what is wrong>"`` (the field is named wherever the input is at fault), and
 the batch always completes.  A file that is not a version-1 document at all
 raises :class:`~mjccd.errors.InputError` naming the file or the top-level field.
+
+Cases whose two bodies each move between two poses (static, rigid, affine)
+and whose numbers pass every check are read by a scalar fast path and solved
+together, a chunk at a time, in one compiled call
+(:func:`mjccd.ccd.two_pose_batch`); every other case, and each of those whose
+answer needs the rational tier, goes through :func:`solve_case` alone.
 """
 import json
+import math
 import re
 import reprlib
 
+import numpy as np
+
 from mjccd import _validate, interrupts
-from mjccd.ccd import solve_pair
+from mjccd.ccd import PACKED_HEAD, _needs_exact, solve_pair, two_pose_batch
 from mjccd.errors import InputError
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Rational, Rigid,
                           Slide, Static)
-from mjccd.quadric import Ellipsoid
+from mjccd.quadric import STATUS_NAMES, Ellipsoid
 
 FORMAT_VERSION = 1
+CHUNK = 256  # two-pose cases per compiled call; Ctrl-C takes effect between chunks
 
 # a message that starts with the argument it is about ("start.quaternion: ...", "rotation[0][1]: ...")
 _NAMED = re.compile(r"[A-Za-z_][\w\[\]./]*: ")
@@ -249,17 +259,177 @@ def _case_list(doc):
     return doc["cases"]
 
 
+# ---------------------------------------------------------------- the two-pose fast path
+
+_NUMBER = frozenset((int, float))  # what json.loads makes of a number (bool, its subclass, is not one)
+
+
+def _plain_unit(q):
+    """The unit quaternion the motion makes of the direction :func:`_direction` makes of ``q`` (finite
+    floats), or None when that is a zero quaternion.
+
+    Scaled by a power of two first, as :func:`_direction` does, wherever that
+    scaling could round (entries above 1): elsewhere it is exact, and
+    ``math.hypot`` and the quotients do not see it.
+    """
+    exponent = math.frexp(max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])))[1]
+    if exponent > 0:
+        q = [math.ldexp(q[0], -exponent), math.ldexp(q[1], -exponent), math.ldexp(q[2], -exponent),
+             math.ldexp(q[3], -exponent)]
+    norm = math.hypot(q[0], q[1], q[2], q[3])
+    if norm < _validate.MIN_NORM:
+        return None
+    return [q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm]
+
+
+def _plain_body(case, key):
+    """(affine?, [radii, p0, q0, p1, q1] (17 floats)) of body ``key`` when it moves between two poses and every
+    number passes its check; None otherwise (the case then goes through :func:`solve_case`, which names what is
+    wrong).
+
+    One pass over all the body's numbers: lists of JSON numbers (a bool is not one) of the right lengths,
+    finite, radii and positions within LENGTH_RANGE, quaternions not zero.
+    """
+    body = case.get(key)
+    if type(body) is not dict:
+        return None
+    motion, xs = body.get("motion"), body.get("radii")
+    if type(motion) is not dict or type(xs) is not list or len(xs) != 3:
+        return None
+    kind = motion.get("type")
+    if kind == "static":
+        poses = (motion,)
+    elif kind == "rigid" or kind == "affine":
+        poses = (motion.get("start"), motion.get("end"))
+    else:
+        return None
+    xs = xs[:]  # radii, then each pose's position and quaternion
+    for pose in poses:
+        if type(pose) is not dict:
+            return None
+        position, quaternion = pose.get("position"), pose.get("quaternion")
+        if type(position) is not list or type(quaternion) is not list or len(position) != 3 or len(quaternion) != 4:
+            return None
+        xs += position
+        xs += quaternion
+    if not _NUMBER.issuperset(map(type, xs)):
+        return None
+    try:
+        xs = list(map(float, xs))
+    except OverflowError:
+        return None
+    total = sum(xs)
+    lo, hi = _validate.LENGTH_RANGE
+    if total - total != 0.0 or not (lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi):
+        return None
+    if max(xs) > hi or min(xs) < -hi:  # then look at the positions alone (a direction may be that long)
+        for k in range(3, len(xs), 7):
+            if max(abs(xs[k]), abs(xs[k + 1]), abs(xs[k + 2])) > hi:
+                return None
+    out = xs[0:3]
+    for k in range(3, len(xs), 7):
+        quaternion = _plain_unit(xs[k + 3:k + 7])
+        if quaternion is None:
+            return None
+        out += xs[k:k + 3]
+        out += quaternion
+    if kind == "static":
+        out += out[3:]
+        return False, out
+    q0, q1 = out[6:10], out[13:17]
+    if kind == "rigid" and q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0.0:
+        out[13:17] = [-q1[0], -q1[1], -q1[2], -q1[3]]  # as Rigid aligns them
+    return kind == "affine", out
+
+
+def _plain_case(case):
+    """(numbers, affine (2,)) of a case for :func:`mjccd.ccd.two_pose_batch`, or None: the numbers are body a's
+    radii and row [p0, q0, p1, q1], then body b's (17 each)."""
+    if type(case) is not dict or type(case.get("id", "")) is not str:
+        return None
+    a = _plain_body(case, "a")
+    b = None if a is None else _plain_body(case, "b")
+    if b is None:
+        return None
+    return a[1] + b[1], (a[0], b[0])
+
+
+def _packed_result(cid, out):
+    """The result of a case from its packed answer (a list, see :func:`mjccd.ccd.pack_solution`), as
+    :func:`solve_case` writes it; None when the answer needs the rational tier."""
+    status0, k, reached, _, certified, lo, hi = out[:7]
+    if _needs_exact(status0, certified, reached):
+        return None
+    k = int(k)
+    times = out[PACKED_HEAD:PACKED_HEAD + 2 * k]
+    result = {"id": cid, "status_at_start": STATUS_NAMES[int(status0)], "first_contact": 0.0,
+              "intervals": [[times[2 * i], times[2 * i + 1]] for i in range(k)], "contact_point": None,
+              "certainty": "certified"}
+    if status0 != 1:  # not separate at the start: the first contact is t = 0, whatever came later
+        return result
+    if k:
+        result["first_contact"] = times[0]
+        result["contact_point"] = out[7:10]
+    else:
+        result["first_contact"] = None if certified else lo
+    if not certified:  # a search limit: every possible first contact lies in [lo, hi]
+        result["certainty"] = "uncertain"
+        result["first_contact_bracket"] = [lo, hi]
+    return result
+
+
+def _solve_two_pose(cases, plain):
+    """Results of the two-pose cases ``cases`` [(k, case), ...] with their :func:`_plain_case` lists, in one
+    compiled call; each one the batch cannot answer (rational tier) is solved alone."""
+    numbers = np.array([p[0] for p in plain]).reshape(-1, 2, 17)
+    radii = np.ascontiguousarray(numbers[:, :, :3])
+    rows = np.ascontiguousarray(numbers[:, :, 3:])
+    affine = np.array([p[1] for p in plain], dtype=np.bool_)
+    starts = np.empty(len(plain) + 1, dtype=np.int64)
+    packed = two_pose_batch(affine, radii, rows, 1.0, False, starts).tolist()
+    results = []
+    for (k, case), s0, s1 in zip(cases, starts[:-1].tolist(), starts[1:].tolist()):
+        cid = case["id"] if "id" in case else f"#{k}"
+        results.append(_packed_result(cid, packed[s0:s1]) or _result(case, k))
+    return results
+
+
+def _fill(results, batch, plain):
+    """The results of a chunk of two-pose cases into ``results``: one compiled call, or, should that call
+    fail, each case alone, so that a failure is the failing case's error."""
+    try:
+        solved = _solve_two_pose(batch, plain)
+    except Exception:  # whatever it is, solving the cases alone tells whose it is
+        solved = [_result(case, k) for k, case in batch]
+    for (k, _), result in zip(batch, solved):
+        results[k] = result
+
+
 def solve_cases(doc):
     """Solve a ``{"version": 1, "cases": [...]}`` document; returns the results document.
 
     Raises InputError when ``doc`` is not such a document; a case that
     cannot be solved becomes its result's error.  Ctrl-C takes effect
-    between cases (:func:`mjccd.interrupts.deferred`), never inside compiled code.
+    between cases and chunks of cases (:func:`mjccd.interrupts.deferred`),
+    never inside compiled code.
     """
     cases = _case_list(doc)
-    results = []
+    results = [None] * len(cases)
+    batch, plain = [], []
     with interrupts.deferred() as check:
         for k, case in enumerate(cases):
+            lists = _plain_case(case)
+            if lists is None:
+                check()
+                results[k] = _result(case, k)
+                continue
+            batch.append((k, case))
+            plain.append(lists)
+            if len(batch) == CHUNK:
+                check()
+                _fill(results, batch, plain)
+                batch, plain = [], []
+        if batch:
             check()
-            results.append(_result(case, k))
+            _fill(results, batch, plain)
     return {"version": FORMAT_VERSION, "results": results}

@@ -670,83 +670,172 @@ def _bisect_sign(F, lo, hi, rising):
 
 
 @_jit
-def _curvature_bound(F, t0, t1):
-    """Upper bound of F_tt over u in [0, 1] and t in [t0, t1] (second differences of the restricted coefficients)."""
-    C = bz.bivariate_restrict_t(F, t0, t1)
-    n = C.shape[1] - 1
-    if n < 2:
-        return 0.0
-    m2 = 0.0
-    for i in range(C.shape[0]):
-        for j in range(n - 1):
-            m2 = max(m2, C[i, j + 2] - 2.0 * C[i, j + 1] + C[i, j])
-    return m2 * n * (n - 1) / ((t1 - t0) * (t1 - t0))
+def _rows_into(F, t, out):
+    """Every row of ``F`` (Bernstein in t) at t into ``out``: one Horner pass in t/(1-t) for all rows (as
+    :func:`_rows_at`, for any number of rows and any degree)."""
+    rows = F.shape[0]
+    n = F.shape[1] - 1
+    if n == 0:
+        for i in range(rows):
+            out[i] = F[i, 0]
+        return
+    flip = t > 0.5
+    s = (1.0 - t) / t if flip else t / (1.0 - t)
+    end = 0 if flip else n
+    for i in range(rows):
+        out[i] = F[i, end]
+    tabled = n <= bz.TABLED_DEGREE
+    binom = 1.0
+    for k in range(n - 1, -1, -1):
+        binom = bz.BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        j = n - k if flip else k
+        for i in range(rows):
+            out[i] = out[i] * s + binom * F[i, j]
+    w = (t if flip else 1.0 - t) ** n
+    for i in range(rows):
+        out[i] *= w
+
+
+@_jit
+def _third_derivative_bounds(F, out):
+    """Per row of ``F``: an upper bound (>= 0) of its third t-derivative on [0, 1], into ``out``.
+
+    The third differences of the coefficients times n (n - 1) (n - 2) are the
+    Bernstein coefficients of that derivative, which bound it; each is widened
+    by the rounding of the differences.  (Restricted to the march's own
+    interval they would be tighter, at the cost of a subdivision per row: on
+    close pairs the march is faster without it.)
+    """
+    rows = F.shape[0]
+    n = F.shape[1] - 1
+    if n < 3:
+        out[:] = 0.0
+        return
+    scale = n * (n - 1) * (n - 2) * 1.0
+    for i in range(rows):
+        top = -np.inf
+        size = 0.0
+        for j in range(n - 2):
+            top = max(top, F[i, j + 3] - 3.0 * F[i, j + 2] + 3.0 * F[i, j + 1] - F[i, j])
+        for j in range(n + 1):
+            size = max(size, abs(F[i, j]))
+        out[i] = max((top + 8.0 * gamma(8) * size) * scale, 0.0)
+
+
+@_jit
+def _quartic_model(g, d, c, M3, u, h):
+    """At one u: sum_i B_i(u) (g_i + h d_i + h^2 / 2 max(c_i + h M3_i, 0)), the march's bound (see
+    :func:`_march_exit`)."""
+    v = 1.0 - u
+    b0 = v * v * v * v
+    b1 = 4.0 * u * v * v * v
+    b2 = 6.0 * u * u * v * v
+    b3 = 4.0 * u * u * u * v
+    b4 = u * u * u * u
+    hh = 0.5 * h * h
+    return (b0 * (g[0] + h * d[0] + hh * max(c[0] + h * M3[0], 0.0))
+            + b1 * (g[1] + h * d[1] + hh * max(c[1] + h * M3[1], 0.0))
+            + b2 * (g[2] + h * d[2] + hh * max(c[2] + h * M3[2], 0.0))
+            + b3 * (g[3] + h * d[3] + hh * max(c[3] + h * M3[3], 0.0))
+            + b4 * (g[4] + h * d[4] + hh * max(c[4] + h * M3[4], 0.0)))
+
+
+@_jit
+def _predicted_step(g, d, c, M3, u, margin, room):
+    """The largest step within ``room`` (to about 1 %) that the march's bound proves at the single u: an
+    estimate of the step it proves for every u, which :func:`_march_exit` then checks."""
+    if _quartic_model(g, d, c, M3, u, room) < -margin:
+        return room
+    h = room
+    for _ in range(80):
+        h *= 0.5
+        if _quartic_model(g, d, c, M3, u, h) < -margin:
+            break
+    lo, hi = h, 2.0 * h
+    for _ in range(7):
+        mid = 0.5 * (lo + hi)
+        if _quartic_model(g, d, c, M3, u, mid) < -margin:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 @_jit
 def _march_exit(F, t_start, t_end):
-    """Certified march through an overlap of F (an upper bound of the true F): returns (exit time or 2.0
-    for none, or -1.0; time reached).
+    """Certified march through an overlap of F (an upper bound of the true F, 5 rows in u): returns (exit time
+    or 2.0 for none, or -1.0; time reached).
 
-    From a time a with State(a) < 0 it steps by the largest h (found by
-    doubling and halving) for which
-        max_u [F(u, a) + h F_t(u, a)] + h^2 M / 2 < 0,
-    M an upper bound of F_tt on a window [a, a + W] (Bernstein coefficients
-    of the second derivative, refreshed as the march goes and sized to the
-    steps).  Taylor's theorem makes that an upper bound of F on [a, a + h]
-    for every u, and the maximum over u of the quartic is exact, so
-    [a, a + h] is certified overlapping.  Near an exit the steps converge
-    quadratically onto it.  When they stall without reaching a time where
-    State >= 0 (a near-exit that does not happen) it returns -1 and the
-    time reached, for the box search to go on from there.
+    From a time a with State(a) < 0 it steps by h where, for every u,
+        sum_i B_i(u) [g_i + h d_i + h^2 / 2 max(c_i + h M_i, 0)] < 0,
+    with g_i, d_i, c_i the value, slope and curvature at a of row i of F (its
+    Bernstein coefficient in u, a polynomial in t) and M_i >= 0 an upper
+    bound of that row's third derivative (:func:`_third_derivative_bounds`).
+    By Taylor's theorem the bracket bounds row i on [a, a + h]; it is convex
+    in the step, so with B_i(u) >= 0 its value at h and State(a) < 0 prove
+    F < 0 on [a, a + h] for every u.  The maximum over u of that quartic is
+    exact (:func:`mjccd.quadric.quartic_max5`), and a margin covers the
+    rounding of the rows.  The step tried is the largest the bound allows at
+    the u where the last one was tightest (:func:`_predicted_step`), shrunk
+    until proven.  Near an exit the steps converge quadratically onto it;
+    once it is within EXIT_BOX_TOL, it is the zero of State there
+    (:func:`_rising_zero`).  When the steps stall short of a time where
+    State >= 0 it returns -1 and the time reached, for the box search to go
+    on from there.
     """
     rows = F.shape[0]
-    Ft = np.empty((rows, F.shape[1] - 1))
+    if t_end <= t_start:
+        return 2.0, t_end
+    Ft = bz.bivariate_derivative_t(F)
+    Ftt = bz.bivariate_derivative_t(Ft)
+    size = 0.0  # slopes and curvatures at a are rounded relative to their coefficients
     for i in range(rows):
-        Ft[i] = bz.derivative(F[i])
+        for j in range(Ft.shape[1]):
+            size = max(size, abs(Ft[i, j]))
+        for j in range(Ftt.shape[1]):
+            size = max(size, abs(Ftt[i, j]))
+    M3 = np.empty(rows)
+    _third_derivative_bounds(F, M3)
     g = np.empty(rows)
     d = np.empty(rows)
+    c = np.empty(rows)
     r = np.empty(rows)
     a = t_start
-    h = 1e-3 * (t_end - t_start)
-    w0 = w1 = a
-    m2 = 0.0
-    narrowed = False
+    u = -1.0
     for _ in range(MAX_MARCH):
         if a >= t_end:
             return 2.0, t_end
-        if a >= w1 or h < (w1 - w0) / 32.0:
-            w0 = a
-            w1 = min(t_end, a + 8.0 * h)
-            m2 = _curvature_bound(F, w0, w1)
+        _rows_into(F, a, g)
+        _rows_into(Ft, a, d)
+        _rows_into(Ftt, a, c)
         margin = 0.0
         for i in range(rows):
-            g[i] = bz.evaluate_row(F, i, a)
-            d[i] = bz.evaluate_row(Ft, i, a)
-            margin = max(margin, abs(g[i]) + abs(d[i]))
-        margin *= EVAL_ROUNDING  # rounding of the rows and of the quartic's maximum
-        h = min(2.0 * h, w1 - a)
-        while h >= EXIT_BOX_TOL:
+            margin = max(margin, abs(g[i]) + abs(d[i]) + abs(c[i]) + M3[i])
+        margin = EVAL_ROUNDING * (margin + size)  # rounding of the rows and of the quartic's maximum
+        if u < 0.0:
+            _, u = quartic_max5(g[0], g[1], g[2], g[3], g[4])
+        room = t_end - a
+        h = _predicted_step(g, d, c, M3, u, margin, room)
+        h = room if h >= room else 0.95 * h
+        proven = False
+        while h >= 1e-3 * EXIT_BOX_TOL:
             for i in range(rows):
-                r[i] = g[i] + h * d[i]
-            bmax, _ = quartic_max(r)
-            if bmax + 0.5 * m2 * h * h < -margin:
+                r[i] = g[i] + h * d[i] + 0.5 * h * h * max(c[i] + h * M3[i], 0.0)
+            bmax, u = quartic_max5(r[0], r[1], r[2], r[3], r[4])
+            if bmax < -margin:
+                proven = True
                 break
-            h *= 0.5
-        if h >= EXIT_BOX_TOL:
-            a += h
-            narrowed = False
-            continue
-        if not narrowed and w1 - w0 > 16.0 * EXIT_BOX_TOL:  # the window may be too wide: retry narrower
-            h = 2.0 * EXIT_BOX_TOL
-            w1 = a
-            narrowed = True
-            continue
-        tb = min(a + EXIT_BOX_TOL, t_end)
-        gmax, _ = state(F, tb)
-        if gmax >= 0.0:
-            return _bisect_sign(F, a, tb, np.bool_(True)), tb
+            h *= 0.7
+        # a step shorter than EXIT_BOX_TOL is taken only while State is still negative that far ahead
+        if not proven or (h < EXIT_BOX_TOL and state(F, min(a + EXIT_BOX_TOL, t_end))[0] >= 0.0):
+            break
+        a = t_end if h >= room else a + h
+    else:
         return -1.0, a
+    tb = min(a + EXIT_BOX_TOL, t_end)
+    gmax, _ = state(F, tb)
+    if gmax >= 0.0:
+        return _rising_zero(F, a, tb), tb
     return -1.0, a
 
 
@@ -1016,17 +1105,18 @@ def search_exit(F, E, t_start, t_end):
 
 
 @_inline
-def _step_off(F, E, t, t_end):
-    """Status just after a contact instant t: the first decided probe t + 1e-13 * 2^k.
+def _step_off(F, E, t, t_end, first):
+    """Status just after a contact instant t: the first decided probe t + first * 2^k.
 
     Returns (probe, status code, last undecided probe).  A pair whose State
     stays inside the rounding band is touching (no clearance or penetration
     a double can show), so the probes go on doubling past the tangential
     resolution (1e-6) until one is decided or t_end is reached (code 0): a
     stretch of touching, e.g. two bodies that touch for the whole step.
+    ``first``: the first offset, 1e-13 unless the band is known to reach further.
     """
     emax = E.max()
-    eps = 1e-13
+    eps = first
     last = t
     while True:
         tp = min(t + eps, t_end)
@@ -1035,6 +1125,64 @@ def _step_off(F, E, t, t_end):
             return tp, code, last
         last = tp
         eps *= 2.0
+
+
+@_jit
+def _probe_after_exit(F, E, emax, t, t_end):
+    """:func:`_step_off` after an overlap's end t: (probe, status code, last undecided probe).
+
+    State rises through the rounding band there; Newton's steps on State
+    minus the bound at the argmax (where :func:`status_with` decides
+    separate) put a probe just past the band's end, so the exit's bracket is
+    about as narrow as the band; probes doubling from 1e-13 overshoot it by up
+    to twice.  Where those steps do not land on a decided probe, the doubling
+    probes take over from the last one.
+    """
+    h = np.empty(F.shape[1])
+    x = t
+    for _ in range(4):
+        gmax, u, slope = _state_and_slope(F, x, h)
+        e0, e1, e2, e3, e4 = _rows_at(E, x)
+        bound = _quartic_at(e0, e1, e2, e3, e4, u)
+        if not slope > 0.0:
+            break
+        probe = min(x + 1.05 * max(bound - gmax, 0.0) / slope + 4.0 * EPS * max(1.0, abs(x)), t_end)
+        code, _, _ = status_with(F, E, emax, probe)
+        if code != 0 or probe >= t_end:
+            return probe, code, x
+        x = probe
+    return _step_off(F, E, t, t_end, max(1e-13, x - t))
+
+
+@_jit
+def _rising_zero(F, lo, hi):
+    """The zero of State in [lo, hi] where it rises (State(lo) < 0 <= State(hi)), to a few units in the last place.
+
+    Newton's steps on State (its slope is F_t at the argmax, see
+    :func:`_state_and_slope`), kept inside the bracket that each value
+    narrows: a step that leaves it is replaced by its midpoint.  They
+    converge quadratically at a regular exit, where halving would take some
+    forty evaluations.
+    """
+    h = np.empty(F.shape[1])
+    t = lo
+    gmax, _, slope = _state_and_slope(F, t, h)
+    for _ in range(100):
+        if hi - lo <= 4.0 * EPS * max(1.0, abs(hi)):
+            return 0.5 * (lo + hi)
+        step = -gmax / slope if slope > 0.0 else np.inf
+        if abs(step) <= 2.0 * EPS * max(1.0, abs(t)):
+            return t
+        nxt = t + step
+        if not lo < nxt < hi:
+            nxt = 0.5 * (lo + hi)
+        t = nxt
+        gmax, _, slope = _state_and_slope(F, t, h)
+        if gmax >= 0.0:
+            hi = t
+        else:
+            lo = t
+    return t
 
 
 @_inline
@@ -1054,7 +1202,7 @@ def _end_of_touch(F, E, lo, hi):
 
 
 @_inline
-def _leave_contact(F, E, t_in, t_max):
+def _leave_contact(F, E, t_in, in_hi, t_max):
     """From a contact instant t_in: (t_out, out_lo, out_hi, t_sep, limited).
 
     t_out is the estimate of the end of the non-separate stretch (overlaps
@@ -1063,16 +1211,22 @@ def _leave_contact(F, E, t_in, t_max):
     separate time right after it, where the next shoot starts (t_max when
     the stretch reaches it).  ``limited``: the overlap search hit its limit,
     and out_lo is only the time up to which the overlap is proven.
+    ``in_hi``: the upper end of the entry's bracket; where the pair is proven
+    overlapping there, the search for the end starts from it.
     """
+    emax = E.max()
     t_out = t_in
     lower = t_in
+    if in_hi > t_in and status_with(F, E, emax, in_hi)[0] == -1:
+        probe, code, last = in_hi, -1, t_in
+    else:
+        probe, code, last = _step_off(F, E, t_out, t_max, 1e-13)
     while True:
-        probe, code, last = _step_off(F, E, t_out, t_max)
         if code == 1:
             if last - t_out > TOUCH_SPAN:  # touching for longer than a graze: up to somewhere in (last, probe)
                 t_out = _end_of_touch(F, E, last, probe)
             elif state(F, t_out)[0] < 0.0:  # the zero of the computed State before the separate probe
-                t_out = _bisect_sign(F, t_out, probe, np.bool_(True))
+                t_out = _rising_zero(F, t_out, probe)
             return t_out, lower, probe, probe, False
         if code == 0:
             return t_max, t_max, t_max, t_max, False
@@ -1082,6 +1236,7 @@ def _leave_contact(F, E, t_in, t_max):
         if t_exit >= t_max:
             return t_max, t_max, t_max, t_max, False
         t_out = lower = t_exit
+        probe, code, last = _probe_after_exit(F, E, emax, t_out, t_max)
 
 
 @_jit
@@ -1122,7 +1277,7 @@ def solve_intervals(F, E, t_max, first_only):
             bounds[0, 1] = in_hi
             bounds[0, 2] = bounds[0, 3] = t_in
             return status0, out[:1], bounds[:1], u_first, -1.0
-        t_out, out_lo, out_hi, t_sep, limited = _leave_contact(F, E, t_in, t_max)
+        t_out, out_lo, out_hi, t_sep, limited = _leave_contact(F, E, t_in, in_hi, t_max)
         if k > 0 and t_in - out[k - 1, 1] <= 1e-12:  # touching the previous one: merge
             out[k - 1, 1] = t_out
             bounds[k - 1, 2] = out_lo
@@ -1299,7 +1454,18 @@ def _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating):
 
 @_jit
 def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+    """Exact CCD of two ellipsoids that each move between two poses (:func:`_two_pose`): the entry of compiled
+    callers such as :func:`exact_pair`."""
+    return _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
+
+
+@_inline
+def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """Exact CCD of two ellipsoids that each move between two poses.
+
+    Typed inside each entry that calls it (:func:`two_pose_pair`,
+    :func:`two_pose_rows`), so that the Python API's first call compiles the
+    solver once, not once for a callee and again inside its caller.
 
     Returns (status at start, intervals (k, 2), bounds (k, 4), point,
     normal, reached, precision tier, certified, bracket_lo, bracket_hi); see
@@ -1366,6 +1532,66 @@ def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1,
     return status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi
 
 
+PACKED_HEAD = 13  # [status0, k, reached, tier, certified, lo, hi, point (3), normal (3)] before the intervals
+
+
+@_jit
+def pack_solution(out, status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi):
+    """:func:`two_pose_pair`'s answer written into ``out`` (PACKED_HEAD + 6 k floats): the head, then the k
+    intervals (2 each) and their bounds (4 each)."""
+    k = intervals.shape[0]
+    out[0] = status0
+    out[1] = k
+    out[2] = reached
+    out[3] = tier
+    out[4] = 1.0 if certified else 0.0
+    out[5] = lo
+    out[6] = hi
+    for m in range(3):
+        out[7 + m] = point[m]
+        out[10 + m] = normal[m]
+    for i in range(k):
+        out[PACKED_HEAD + 2 * i] = intervals[i, 0]
+        out[PACKED_HEAD + 2 * i + 1] = intervals[i, 1]
+        for j in range(4):
+            out[PACKED_HEAD + 2 * k + 4 * i + j] = bounds[i, j]
+
+
+@_jit
+def two_pose_rows(affine_a, affine_b, ra, row_a, rb, row_b, t_max, first_only):
+    """:func:`two_pose_pair` on the motions' rows ``[p0, q0, p1, q1]`` (14,), answered in one flat array
+    (:func:`pack_solution`): one call and one array across the boundary, for the Python API."""
+    status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi = _two_pose(
+        affine_a, affine_b, ra, row_a[0:3], row_a[3:7], row_a[7:10], row_a[10:14],
+        rb, row_b[0:3], row_b[3:7], row_b[7:10], row_b[10:14], t_max, first_only)
+    out = np.empty(PACKED_HEAD + 6 * intervals.shape[0])
+    pack_solution(out, status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi)
+    return out
+
+
+@_jit
+def two_pose_batch(affine, radii, rows, t_max, first_only, starts):
+    """:func:`two_pose_rows` for K pairs in one call: ``affine`` (K, 2) bool, ``radii`` (K, 2, 3), ``rows``
+    (K, 2, 14) (body a, then b).  Returns one flat array holding each pair's packed answer
+    (:func:`pack_solution`); pair k's starts at ``starts[k]`` and ends at ``starts[k + 1]``."""
+    K = radii.shape[0]
+    buf = np.empty(K * (PACKED_HEAD + 6))  # one interval each; doubled when a pair has more
+    pos = 0
+    for k in range(K):
+        out = two_pose_rows(affine[k, 0], affine[k, 1], radii[k, 0], rows[k, 0], radii[k, 1], rows[k, 1],
+                            t_max, first_only)
+        need = out.shape[0]
+        if pos + need > buf.shape[0]:
+            bigger = np.empty(max(2 * buf.shape[0], pos + need))
+            bigger[:pos] = buf[:pos]
+            buf = bigger
+        buf[pos:pos + need] = out
+        starts[k] = pos
+        pos += need
+    starts[K] = pos
+    return buf[:pos]
+
+
 @_inline
 def balanced_F(Pp, Up, sp, err):
     """Balance the pencil in place and build F: (F, D, M), D the 4x4 bounds of the balanced entries' errors
@@ -1430,8 +1656,6 @@ def rigid_first_contact(radii, positions, quaternions, t_max, touch):
 
 
 def _check_pair(a, motion_a, b, motion_b):
-    if type(a) is type(b) is Ellipsoid and type(motion_a) in _TWO_POSE and type(motion_b) in _TWO_POSE:
-        return  # the common case, without the abstract base class's isinstance
     for name, e in (("a", a), ("b", b)):
         if not isinstance(e, Ellipsoid):
             raise InputTypeError(f"{name}: expected an mjccd.Ellipsoid, got {type(e).__name__}")
@@ -1440,16 +1664,34 @@ def _check_pair(a, motion_a, b, motion_b):
             raise InputTypeError(f"{name}: expected an mjccd motion, got {type(m).__name__}")
 
 
-_TWO_POSE = (Static, Rigid, Affine)
+_TWO_POSE = frozenset((Static, Rigid, Affine))
 
 
-def _two_pose_model(motion):
-    """(affine?, p0, q0, p1, q1) of a motion between two poses, or None for the others."""
-    if type(motion) is Static:
-        return False, motion.position, motion.quaternion, motion.position, motion.quaternion
-    if type(motion) in (Rigid, Affine):
-        return type(motion) is Affine, motion.position0, motion.quaternion0, motion.position1, motion.quaternion1
-    return None
+def _two_poses(a, motion_a, b, motion_b):
+    """True for two ellipsoids that each move between two poses (Static, Rigid, Affine): the fused kernel's pairs."""
+    return (type(a) is Ellipsoid and type(b) is Ellipsoid
+            and type(motion_a) in _TWO_POSE and type(motion_b) in _TWO_POSE)
+
+
+def _two_pose_call(a, motion_a, b, motion_b, t_max, first_only):
+    """:func:`two_pose_rows` on the pair: its flat answer (see :func:`pack_solution`)."""
+    return two_pose_rows(type(motion_a) is Affine, type(motion_b) is Affine, a.radii, motion_a._row,
+                         b.radii, motion_b._row, t_max, first_only)
+
+
+def _needs_exact(status0, certified, reached):
+    """True when a double-precision answer goes on to the rational tier (see :func:`solve_motions`)."""
+    return status0 == 0 or (not certified and reached < 0.0 and status0 == 1)
+
+
+def _unpacked(out):
+    """The :class:`PairSolution` of :func:`two_pose_rows`'s flat answer (views of it, no copies)."""
+    status0, k, reached, tier, certified, lo, hi = out[:7].tolist()
+    k = int(k)
+    touch = status0 == 1 and k > 0
+    return PairSolution(int(status0), out[PACKED_HEAD:PACKED_HEAD + 2 * k].reshape(k, 2),
+                        out[7:10] if touch else None, out[10:13] if touch else None, certified != 0.0, (lo, hi),
+                        out[PACKED_HEAD + 2 * k:].reshape(k, 4), reached, int(tier))
 
 
 def time_pieces(factors, t_max):
@@ -1612,6 +1854,7 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
     intervals = solution.intervals.copy()
     bounds = solution.bounds.copy()
     certified = True
+    first_refined = False  # the first contact's time settled here: its point is taken there, exactly
     for k in range(len(intervals)):
         # a time the pair is not separate inside interval k: the entry's proven-overlap end, refined below
         inside = Fraction(0) if k == 0 and solution.status_at_start != 1 else Fraction(float(bounds[k, 1]))
@@ -1632,8 +1875,9 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
             bounds[k, 2 * end:2 * end + 2] = intervals[k, end]
             if end == 0:
                 inside = boundary
+                first_refined = first_refined or k == 0
     point, normal = solution.point, solution.normal
-    if len(intervals) and solution.status_at_start == 1 and intervals[0, 0] != solution.intervals[0, 0]:
+    if first_refined and solution.status_at_start == 1:
         point, normal = pair.touch(float(intervals[0, 0]))
     lo, hi = (bounds[0, 0], bounds[0, 1]) if len(intervals) else solution.bracket
     return solution._replace(intervals=intervals, bounds=bounds, point=point, normal=normal, certified=certified,
@@ -1685,16 +1929,16 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     the fused kernel :func:`two_pose_pair`; every other pair is built in a
     local frame and over pieces of time (:func:`time_pieces`).
     """
-    _check_pair(a, motion_a, b, motion_b)
-    pose_a, pose_b = _two_pose_model(motion_a), _two_pose_model(motion_b)
-    if pose_a is None or pose_b is None:
-        solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
+    if _two_poses(a, motion_a, b, motion_b):
+        solution = _unpacked(_two_pose_call(a, motion_a, b, motion_b, float(t_max), first_only))
     else:
-        status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi = two_pose_pair(
-            pose_a[0], pose_b[0], a.radii, *pose_a[1:], b.radii, *pose_b[1:], t_max, first_only)
-        touch = status0 == 1 and len(intervals) > 0
-        solution = PairSolution(int(status0), intervals, point if touch else None, normal if touch else None,
-                                bool(certified), (float(lo), float(hi)), bounds, float(reached), int(tier))
+        _check_pair(a, motion_a, b, motion_b)
+        solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
+    return _settled(a, motion_a, b, motion_b, solution, first_only)
+
+
+def _settled(a, motion_a, b, motion_b, solution, first_only):
+    """The double-precision ``solution`` with what it left open settled in rational arithmetic."""
     if solution.status_at_start == 0:
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
     if not solution.certified and solution.reached < 0.0 and solution.status_at_start == 1:
@@ -1744,13 +1988,32 @@ def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
     Returns None when they are certified separate over [0, t_max].  ``t_max``
     is the running bound when many pairs are solved for the earliest contact.
     """
-    t_max = _validate.time_bound(t_max, "t_max")
-    return _contact(solve_motions(a, motion_a, b, motion_b, t_max, True))
+    if type(t_max) is not float or not 0.0 <= t_max <= 1.0:
+        t_max = _validate.time_bound(t_max, "t_max")
+    if not _two_poses(a, motion_a, b, motion_b):
+        return _contact(solve_motions(a, motion_a, b, motion_b, t_max, True))
+    out = _two_pose_call(a, motion_a, b, motion_b, t_max, True)
+    status0, k, reached, _, certified = out[:5].tolist()
+    if _needs_exact(status0, certified, reached):
+        return _contact(_settled(a, motion_a, b, motion_b, _unpacked(out), True))
+    if status0 != 1:
+        return Contact(0.0, None, None, STATUS_NAMES[int(status0)])
+    if not certified:  # a search limit: the bracket of a possible contact
+        return _contact(_unpacked(out))
+    return Contact(float(out[PACKED_HEAD]), out[7:10], out[10:13], "separate") if k > 0 else None
 
 
 def collision_intervals(a, motion_a, b, motion_b):
     """Maximal time intervals [t_in, t_out] within [0, 1] where the two are not separate."""
-    return [(float(x), float(y)) for x, y in solve_motions(a, motion_a, b, motion_b).intervals]
+    if not _two_poses(a, motion_a, b, motion_b):
+        return [(float(x), float(y)) for x, y in solve_motions(a, motion_a, b, motion_b).intervals]
+    out = _two_pose_call(a, motion_a, b, motion_b, 1.0, False)
+    status0, k, reached, _, certified = out[:5].tolist()
+    if _needs_exact(status0, certified, reached):
+        out = _settled(a, motion_a, b, motion_b, _unpacked(out), False).intervals.ravel()
+        return list(zip(out[0::2].tolist(), out[1::2].tolist()))
+    times = out[PACKED_HEAD:PACKED_HEAD + 2 * int(k)].tolist()
+    return list(zip(times[0::2], times[1::2]))
 
 
 def solve_pair(a, motion_a, b, motion_b):

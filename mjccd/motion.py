@@ -406,7 +406,10 @@ def _restrict_all(c, t0, t1):
 
 def _linear_bernstein(v0, v1):
     """Bernstein coefficients (..., 2) of the lerp from v0 to v1."""
-    return np.ascontiguousarray(np.stack([np.asarray(v0, float), np.asarray(v1, float)], axis=-1))
+    out = np.empty(np.shape(v0) + (2,))
+    out[..., 0] = v0
+    out[..., 1] = v1
+    return out
 
 
 def _aligned(q0, q1):
@@ -510,10 +513,24 @@ class Motion(abc.ABC):
 
 
 class _WMotion(Motion):
-    """A motion given by its scaled inverse W(t) = c(t) M(t)^-1."""
+    """A motion given by its scaled inverse W(t) = c(t) M(t)^-1.
+
+    Given to the constructor, or (:class:`Static`, :class:`Rigid`) formed by
+    the subclass's ``_scaled_inverse`` on first need: the two-pose solver
+    never needs it.
+    """
+
+    _w_cache = None
 
     def __init__(self, G, h, g):
-        self._w = (np.ascontiguousarray(G), np.ascontiguousarray(h), np.ascontiguousarray(g))
+        self._w_cache = (np.ascontiguousarray(G), np.ascontiguousarray(h), np.ascontiguousarray(g))
+
+    @property
+    def _w(self):
+        """(G, h, g) Bernstein arrays of W."""
+        if self._w_cache is None:
+            self._w_cache = self._scaled_inverse()
+        return self._w_cache
 
     def quadric(self, radii):
         return quadric_from_w(*self._w, np.asarray(radii, float))
@@ -563,15 +580,66 @@ class _WMotion(Motion):
         return np.hstack([L, (-L @ (ht / gt))[:, None]])
 
 
+def _pose_row(position0, quaternion0, position1, quaternion1, align):
+    """Validated poses as one float64 row ``[p0, q0, p1, q1]`` (14,), the quaternions unit; with ``align``,
+    q1 is replaced by -q1 where that makes the lerp from q0 take the short way."""
+    xs = _validate.plain_floats((position0, quaternion0, position1, quaternion1), (3, 4, 3, 4))
+    n0 = n1 = 0.0
+    if xs is not None:
+        n0 = math.hypot(xs[3], xs[4], xs[5], xs[6])
+        n1 = math.hypot(xs[10], xs[11], xs[12], xs[13])
+    if _validate.MIN_NORM <= n0 < math.inf and _validate.MIN_NORM <= n1 < math.inf:
+        p0, q0 = xs[0:3], [xs[3] / n0, xs[4] / n0, xs[5] / n0, xs[6] / n0]
+        p1, q1 = xs[7:10], [xs[10] / n1, xs[11] / n1, xs[12] / n1, xs[13] / n1]
+    else:  # the checks one field at a time, which name what is wrong
+        p0 = _validate.floats(position0, 3, "start.position")
+        q0 = _validate.unit_quaternion(quaternion0, "start.quaternion")
+        p1 = _validate.floats(position1, 3, "end.position")
+        q1 = _validate.unit_quaternion(quaternion1, "end.quaternion")
+    if align and q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0.0:
+        q1 = [-q1[0], -q1[1], -q1[2], -q1[3]]
+    return np.array(p0 + q0 + p1 + q1)
+
+
+def _shifted(motion, offset):
+    """A copy of a validated two-pose motion (``_row``) whose centres are shifted by -offset (no re-validation)."""
+    moved = object.__new__(type(motion))
+    moved.__dict__.update(motion.__dict__)
+    moved.__dict__.pop("_w_cache", None)  # formed again from the shifted centres: no cancellation in W
+    row = motion._row.copy()
+    row[0:3] -= offset
+    row[7:10] -= offset
+    moved._row = row
+    return moved
+
+
 class Static(_WMotion):
     """A fixed pose."""
 
     kind = "static"
 
     def __init__(self, position, quaternion=(1.0, 0.0, 0.0, 0.0)):
-        self.position = _validate.vector(position, 3, "position")
-        self.quaternion = _validate.quaternion(quaternion, "quaternion")
-        super().__init__(*_pose_w(self.position, self.quaternion))
+        xs = _validate.plain_floats((position, quaternion), (3, 4))
+        norm = 0.0 if xs is None else math.hypot(xs[3], xs[4], xs[5], xs[6])
+        if _validate.MIN_NORM <= norm < math.inf:
+            p, q = xs[0:3], [xs[3] / norm, xs[4] / norm, xs[5] / norm, xs[6] / norm]
+        else:  # the checks one field at a time, which name what is wrong
+            p = _validate.floats(position, 3, "position")
+            q = _validate.unit_quaternion(quaternion, "quaternion")
+        self._row = np.array(p + q + p + q)  # the two-pose row of a motion that stays put
+
+    @property
+    def position(self):
+        """(3,) world position."""
+        return self._row[0:3]
+
+    @property
+    def quaternion(self):
+        """(4,) unit quaternion [w, x, y, z]."""
+        return self._row[3:7]
+
+    def _scaled_inverse(self):
+        return _pose_w(self.position, self.quaternion)
 
     def anchor(self):
         return self.position
@@ -580,30 +648,37 @@ class Static(_WMotion):
         return exact.quadric_exact(radii, self.position, self.quaternion)
 
     def translated(self, offset):
-        moved = _copy_with(self, position=self.position - offset)
-        moved._w = _pose_w(moved.position, moved.quaternion)
-        return moved
-
-
-def _copy_with(motion, **attributes):
-    """A shallow copy of an already validated motion with some attributes replaced (no re-validation)."""
-    moved = object.__new__(type(motion))
-    moved.__dict__.update(motion.__dict__)
-    moved.__dict__.update(attributes)
-    return moved
+        return _shifted(self, offset)
 
 
 class _TwoPoses:
-    """Local-frame helpers of the motions that interpolate two poses (centre lerp)."""
+    """The motions that interpolate two poses (centre lerp): validated poses in ``_row`` = [p0, q0, p1, q1]."""
+
+    @property
+    def position0(self):
+        """(3,) centre at t = 0."""
+        return self._row[0:3]
+
+    @property
+    def quaternion0(self):
+        """(4,) unit quaternion at t = 0."""
+        return self._row[3:7]
+
+    @property
+    def position1(self):
+        """(3,) centre at t = 1."""
+        return self._row[7:10]
+
+    @property
+    def quaternion1(self):
+        """(4,) unit quaternion at t = 1 (for :class:`Rigid`, on the side of quaternion0)."""
+        return self._row[10:14]
 
     def anchor(self):
         return self.position0
 
     def translated(self, offset):
-        moved = _copy_with(self, position0=self.position0 - offset, position1=self.position1 - offset)
-        if isinstance(moved, _WMotion):  # formed again from the shifted centres: no cancellation in W
-            moved._w = moved._scaled_inverse()
-        return moved
+        return _shifted(self, offset)
 
     def factor(self):
         return None
@@ -624,22 +699,13 @@ class _TwoPoses:
                       for x, y in zip(self.quaternion0, self.quaternion1)]
 
 
-def _end_poses(position0, quaternion0, position1, quaternion1):
-    """Validated start and end poses of a two-pose motion."""
-    return (_validate.vector(position0, 3, "start.position"), _validate.quaternion(quaternion0, "start.quaternion"),
-            _validate.vector(position1, 3, "end.position"), _validate.quaternion(quaternion1, "end.quaternion"))
-
-
 class Rigid(_TwoPoses, _WMotion):
     """Centre lerp and quaternion lerp: ``R(t) = rot(q(t)) / |q(t)|^2``, rational of degree 2."""
 
     kind = "rigid"
 
     def __init__(self, position0, quaternion0, position1, quaternion1):
-        self.position0, self.quaternion0, self.position1, q1 = _end_poses(position0, quaternion0,
-                                                                          position1, quaternion1)
-        self.quaternion1 = _aligned(self.quaternion0, q1)
-        super().__init__(*self._scaled_inverse())
+        self._row = _pose_row(position0, quaternion0, position1, quaternion1, True)
 
     def _scaled_inverse(self):
         """W of the quaternion lerp followed by the centre lerp, formed from this motion's own poses."""
@@ -661,8 +727,7 @@ class Affine(_TwoPoses, Motion):
     kind = "affine"
 
     def __init__(self, position0, quaternion0, position1, quaternion1):
-        self.position0, self.quaternion0, self.position1, self.quaternion1 = _end_poses(
-            position0, quaternion0, position1, quaternion1)
+        self._row = _pose_row(position0, quaternion0, position1, quaternion1, False)
 
     def quadric(self, radii):
         return quadric_affine(np.asarray(radii, float), self.position0, self.quaternion0,

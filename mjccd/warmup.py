@@ -9,7 +9,8 @@ kernels it compiled and its time.  Once the cache holds them, warmup takes a few
 Jobs (``mjccd warmup JOB ...`` runs some; ``--list`` prints them):
 
 * ``core``: ``first_contact`` and ``collision_intervals`` for every motion model (the fused
-  two-pose kernel, the general path by pieces), the static tests, a plane;
+  two-pose kernel, the general path by pieces), the static tests, a plane, ``mjccd solve``'s
+  batched cases;
 * ``scene``: :class:`mjccd.scene.Scene` (moving-sphere filter, separating planes, the exact
   pairs) with rigid and affine motion, per frame and batched;
 * ``replay``: ``mjccd replay`` with rigid, affine and chain motion on the boxing clip the
@@ -33,9 +34,9 @@ from mjccd import _cache
 
 
 def _core():
-    from mjccd import (Affine, Ball, Chain, Ellipsoid, Fixed, Hinge, LinearAffine, Rational, Rigid, Slide, Static,
-                       collision_intervals, contact_point, first_contact, separating_plane, static_status,
-                       static_status_many)
+    from mjccd import (Affine, Ball, Chain, Ellipsoid, Fixed, Hinge, LinearAffine, Plane, Rational, Rigid, Slide,
+                       Static, collision_intervals, contact_point, first_contact, plane_first_contact,
+                       separating_plane, solve_cases, static_status, static_status_many)
 
     a, b = Ellipsoid([0.3, 0.2, 0.1]), Ellipsoid([0.2, 0.2, 0.4])
     still = Static([0.0, 0.1, 0.0])
@@ -64,10 +65,12 @@ def _core():
                        [[0.5, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [3.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]])
     separating_plane(a, pose_a, b, ([3.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]))
     contact_point(a, pose_a, b, ([0.5, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0]))
-    import mjccd
-
-    if hasattr(mjccd, "plane_first_contact"):
-        mjccd.plane_first_contact(a, turning, mjccd.Plane([0.0, 0.0, 1.0], -0.5))
+    plane_first_contact(a, turning, Plane([0.0, 0.0, 1.0], -0.5))
+    body = {"radii": [0.3, 0.2, 0.1], "motion": {"type": "rigid",
+                                                 "start": {"position": [-1.0, 0.0, 0.0], "quaternion": [1, 0, 0, 0]},
+                                                 "end": {"position": [1.0, 0.0, 0.0], "quaternion": [0, 1, 0, 0]}}}
+    solve_cases({"version": 1, "cases": [{"id": "warmup", "a": body, "b": {"radii": [0.2, 0.2, 0.4],
+                                                                            "motion": {"type": "static", "position": [0, 0.1, 0], "quaternion": [1, 0, 0, 0]}}}]})
 
 
 def _scene():

@@ -400,3 +400,58 @@ def test_chains_far_from_the_origin_give_the_same_answer(free):
         assert contact is not None and contact.certainty == "certified"
         answers.append(contact.time)
     assert max(answers) - min(answers) <= 1e-12, answers
+
+
+def _close_pair(r, kinds=("rigid", "rigid")):
+    """Two ellipsoids crossing each other's path within one step (the bench's close pairs)."""
+    def motion(kind, p0, p1):
+        q0, q1 = r.normal(size=4), r.normal(size=4)
+        if kind == "static":
+            return mjccd.Static(p0, q0)
+        return (mjccd.Rigid if kind == "rigid" else mjccd.Affine)(p0, q0, p1, q1)
+    side = r.normal(size=3) * 0.3
+    a = mjccd.Ellipsoid(r.uniform(0.2, 1.0, 3))
+    b = mjccd.Ellipsoid(r.uniform(0.2, 1.0, 3))
+    return a, motion(kinds[0], [-1.5, 0, 0] + side, [1.5, 0, 0] - side), b, motion(kinds[1], r.normal(size=3) * 0.2,
+                                                                                  r.normal(size=3) * 0.2)
+
+
+def test_interval_ends_are_where_the_exact_status_changes():
+    """The end of each overlap of turning pairs (the certified march, then Newton's steps on State) lies within
+    TIME_TOL of where the status decided in rational arithmetic changes back to separate."""
+    from mjccd.ccd import TIME_TOL, _ExactPair
+
+    checked = 0
+    for seed in range(60):
+        a, ma, b, mb = _close_pair(np.random.default_rng(400 + seed))
+        pair = _ExactPair(a, ma, b, mb)
+        for t_in, t_out in mjccd.collision_intervals(a, ma, b, mb):
+            if t_out >= 1.0 or t_out - t_in < 1e-6:
+                continue
+            found = pair.separation_change(t_out - 1e-7, t_out + 1e-7, False)
+            assert found is not None and abs(found[0] - t_out) <= TIME_TOL, (seed, t_out, found)
+            checked += 1
+        if checked >= 6:
+            break
+    assert checked >= 6
+
+
+@pytest.mark.parametrize("kinds", [("rigid", "rigid"), ("rigid", "static"), ("affine", "rigid"), ("static", "affine")])
+def test_api_answers_read_off_the_kernel_are_the_pair_solution(kinds):
+    """first_contact and collision_intervals read the fused kernel's answer straight off its array; the same
+    answer as the PairSolution every other caller gets (overlapping starts and misses included)."""
+    from mjccd.ccd import _contact, solve_motions
+
+    for seed in range(12):
+        a, ma, b, mb = _close_pair(np.random.default_rng(500 + seed), kinds)
+        want = _contact(solve_motions(a, ma, b, mb, 1.0, True))
+        got = mjccd.first_contact(a, ma, b, mb)
+        if want is None:
+            assert got is None
+        else:
+            assert (got.time, got.status_at_start, got.certainty, got.bracket) == \
+                (want.time, want.status_at_start, want.certainty, want.bracket)
+            for x, y in ((got.point, want.point), (got.normal, want.normal)):
+                assert (x is None and y is None) or np.array_equal(x, y)
+        assert mjccd.collision_intervals(a, ma, b, mb) == \
+            [(float(x), float(y)) for x, y in solve_motions(a, ma, b, mb).intervals]

@@ -78,16 +78,23 @@ def test_a_case_out_of_range_fails_alone_and_the_others_are_written(tmp_path):
 
 
 def test_any_failure_of_one_case_becomes_its_error(monkeypatch):
-    """Whatever the solver raises on one case (here ZeroDivisionError) is that case's error, naming its id."""
+    """Whatever the solver raises on one case (here ZeroDivisionError) is that case's error, naming its id:
+    a compiled call over many cases that fails is taken again one case at a time."""
     examples = _examples()
-    solve_pair = cases.solve_pair
+    solve_pair, batch = cases.solve_pair, cases.two_pose_batch
 
     def fragile(a, motion_a, b, motion_b):
         if a.radii[0] == 0.25:
             raise ZeroDivisionError("division by zero")
         return solve_pair(a, motion_a, b, motion_b)
 
+    def fragile_batch(affine, radii, *args):
+        if (radii[:, 0, 0] == 0.25).any():
+            raise ZeroDivisionError("division by zero")
+        return batch(affine, radii, *args)
+
     monkeypatch.setattr(cases, "solve_pair", fragile)
+    monkeypatch.setattr(cases, "two_pose_batch", fragile_batch)
     doc = {"version": 1, "cases": [examples["pub-sphere-01"], _with(examples["pub-sphere-01"], "fragile",
                                                                      a__radii=[0.25, 0.25, 0.25])]}
     first, broken = mjccd.solve_cases(doc)["results"]

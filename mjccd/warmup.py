@@ -12,7 +12,8 @@ Jobs (``mjccd warmup JOB ...`` runs some; ``--list`` prints them):
   two-pose kernel, the general path by pieces), the static tests, a plane, ``mjccd solve``'s
   batched cases;
 * ``scene``: :class:`mjccd.scene.Scene` (moving-sphere filter, separating planes, the exact
-  pairs) with rigid and affine motion, per frame and batched;
+  pairs) with rigid and affine motion, per frame and batched, and
+  :class:`mjccd.batch.BatchScene` (many worlds in parallel);
 * ``replay``: ``mjccd replay`` with rigid, affine and chain motion on the boxing clip the
   package ships (its first 150 frames);
 * ``mujoco``: :class:`~mjccd.mujoco.CCDMonitor` (what the dm-control and Gymnasium wrappers
@@ -74,6 +75,7 @@ def _core():
 
 
 def _scene():
+    from mjccd.batch import BatchScene
     from mjccd.scene import Scene
 
     radii = [[0.3, 0.2, 0.1], [0.2, 0.2, 0.4], [0.25, 0.1, 0.1]]
@@ -92,6 +94,10 @@ def _scene():
             scene.may_touch(poses[k], poses[k + 1])
         scene.run(poses)
         scene.run(poses, timing=True, new_contacts_only=True)
+        worlds = BatchScene(radii, 2, motion=motion)  # many worlds in parallel (mjccd.batch)
+        worlds.first_contacts(np.stack([poses[0]] * 2), np.stack([poses[1]] * 2))
+        worlds.step(np.stack([poses[0]] * 2), np.stack([poses[1]] * 2), all_pairs=True)
+        worlds.first_contacts_along(np.stack([poses] * 2))
 
 
 def _replay():

@@ -73,7 +73,7 @@ _BONES = [(n, i - 1 if p is None else p, j, c, r) for i, (n, p, j, c, r) in enum
 BONES = len(_BONES)  # 21
 
 
-def _rotations(v):
+def rotations(v):
     """Rotation matrices (..., 3, 3) of rotation vectors v (..., 3) (Rodrigues)."""
     theta = np.linalg.norm(v, axis=-1)[..., None, None]
     k = v / np.maximum(theta[..., 0], 1e-300)
@@ -127,13 +127,13 @@ def boxing_worlds(worlds, frames, *, seed=0, fps=60.0):
             side = 1.0 if name.endswith("_l") else -1.0
             if parent < 0:
                 v = np.stack([np.zeros_like(ts), smooth(0.08), facing + smooth(0.25)], axis=-1)
-                R, p = _rotations(v), root
+                R, p = rotations(v), root
             else:
                 if name.startswith("upper_arm"):
                     rate = rng.uniform(0.4, 0.9, (worlds, 1))
                     phase = rng.uniform(0.0, 2.0 * np.pi, (worlds, 1))
                     punches[name[-1]] = np.maximum(0.0, np.sin(2.0 * np.pi * rate * ts + phase)) ** 4
-                R = rot[parent] @ _rotations(_joint(name, side, smooth, punches.get(name[-1])))
+                R = rot[parent] @ rotations(_joint(name, side, smooth, punches.get(name[-1])))
                 p = pos[parent] + rot[parent] @ np.asarray(joint)
             rot.append(R)
             pos.append(p)

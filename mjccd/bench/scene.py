@@ -27,6 +27,7 @@ import numpy as np
 from mjccd import replay
 from mjccd.mujoco import ModelAdapter
 from mjccd.bench import options
+from mjccd.bench.batch import rotations
 from mjccd.bench.report import write_section
 from mjccd.errors import InputError
 from mjccd.ccd import exact_pair
@@ -55,17 +56,6 @@ for _s, _side in ((1.0, "l"), (-1.0, "r")):
         (f"foot_{_side}", None, (0.0, 0.0, -0.43), (0.06, 0.0, -0.04), (0.12, 0.05, 0.04)),
     ]
 _SKELETON = [(n, (i - 1 if p is None else p), j, c, r) for i, (n, p, j, c, r) in enumerate(_SKELETON)]
-
-
-def _axis_angle(v):
-    """Rotation matrices (F, 3, 3) of rotation vectors v (F, 3)."""
-    theta = np.linalg.norm(v, axis=1)
-    k = v / np.maximum(theta, 1e-300)[:, None]
-    K = np.zeros((len(v), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    s, c = np.sin(theta)[:, None, None], np.cos(theta)[:, None, None]
-    return np.eye(3) + s * K + (1 - c) * K @ K
 
 
 def _quaternions(R):
@@ -114,7 +104,7 @@ def _boxer(rng, ts, root, facing):
         if parent < 0:
             v[:, 2] = yaw
             v[:, 1] = _smooth(rng, ts, 0.08)
-            Rj = _axis_angle(v)
+            Rj = rotations(v)
             Rw = Rj
             pw = root.copy()
         else:
@@ -138,7 +128,7 @@ def _boxer(rng, ts, root, facing):
                 v[:, 2] = _smooth(rng, ts, 0.3)
             else:
                 v[:] = np.stack([_smooth(rng, ts, 0.1) for _ in range(3)], axis=1)
-            Rj = _axis_angle(v)
+            Rj = rotations(v)
             Rp, pp = rot[parent], pos[parent]
             Rw = Rp @ Rj
             pw = pp + np.einsum("fij,j->fi", Rp, np.asarray(joint))

@@ -86,6 +86,21 @@ def check_simulation(model, data):
                          f"{(model.nq, model.nv, model.nbody, model.nmocap)})")
 
 
+def selected_adapter(model, ellipsoids, pairs, motion, planes, stacklevel=2):
+    """The :class:`~mjccd.mujoco.ModelAdapter` of a monitor's arguments: ``pairs`` as
+    :func:`~mjccd.mujoco.pairs.select_pairs` reads them (None: MuJoCo's collision rules) and, with ``planes``,
+    the static planes MuJoCo collides with the ellipsoids' geoms.  Each geom it cannot check is warned about
+    once, as is a selection that leaves nothing to check; the warnings name the line ``stacklevel`` frames up
+    from the caller's (1: the caller's line, 2: its caller's)."""
+    chosen, why = pairs_with_reason(model, ellipsoids, pairs)
+    on_planes = plane_pairs(model, ellipsoids) if planes else None
+    if planes:
+        warn_uncovered(model, ellipsoids, stacklevel=stacklevel + 2)
+    if why is not None and (on_planes is None or len(on_planes) == 0):
+        warnings.warn(why, CoverageWarning, stacklevel=stacklevel + 1)
+    return ModelAdapter(model, ellipsoids, chosen, motion, plane_pairs=on_planes)
+
+
 class CCDMonitor:
     """Exact first contacts between fitted ellipsoids, one MuJoCo step at a time.
 
@@ -121,13 +136,7 @@ class CCDMonitor:
         self.model, self.data, self.ellipsoids = model, data, ellipsoids
         self.motion, self.on_contact, self.all_pairs = motion, on_contact, all_pairs
         self.report_overlapping = report_overlapping
-        chosen, why = pairs_with_reason(model, ellipsoids, pairs)
-        on_planes = plane_pairs(model, ellipsoids) if planes else None
-        if planes:
-            warn_uncovered(model, ellipsoids, stacklevel=2)
-        if why is not None and (on_planes is None or len(on_planes) == 0):
-            warnings.warn(why, CoverageWarning, stacklevel=2)
-        self.adapter = ModelAdapter(model, ellipsoids, chosen, motion, plane_pairs=on_planes)
+        self.adapter = selected_adapter(model, ellipsoids, pairs, motion, planes)
         self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
         self.plane_pairs = self.adapter.plane_pairs
         self.last_report = None

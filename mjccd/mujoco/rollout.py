@@ -13,7 +13,6 @@ its rows; step f moves frame f to frame f + 1.  After ``mujoco.rollout`` (which 
 step) step f therefore ends at row f.
 """
 import re
-import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from time import perf_counter
@@ -27,10 +26,8 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import UNCERTAIN
 from mjccd.mujoco.adapter import ModelAdapter
 from mjccd.mujoco.ellipsoids import EllipsoidSet
-from mjccd.mujoco.monitor import flag, step_count
+from mjccd.mujoco.monitor import flag, selected_adapter, step_count
 from mjccd.mujoco.motions import ellipsoid_poses_into
-from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
-from mjccd.mujoco.warnings import CoverageWarning
 
 FULLPHYSICS = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
 _TIME = int(mujoco.mjtState.mjSTATE_TIME)
@@ -482,14 +479,7 @@ def adapter_for(model, ellipsoids, *, pairs=None, motion="rigid", planes=True):
     if not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet (e.g. mjccd.mujoco.fit_model(model)), "
                              f"got {type(ellipsoids).__name__}")
-    planes = flag(planes, "planes")
-    chosen, why = pairs_with_reason(model, ellipsoids, pairs)
-    on_planes = plane_pairs(model, ellipsoids) if planes else None
-    if planes:
-        warn_uncovered(model, ellipsoids, stacklevel=3)
-    if why is not None and (on_planes is None or len(on_planes) == 0):
-        warnings.warn(why, CoverageWarning, stacklevel=3)
-    return ModelAdapter(model, ellipsoids, chosen, motion, plane_pairs=on_planes)
+    return selected_adapter(model, ellipsoids, pairs, motion, flag(planes, "planes"))
 
 
 def first_contacts(model_or_adapter, states=None, *, qpos=None, initial_state=None, ellipsoids=None, pairs=None,

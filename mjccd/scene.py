@@ -721,17 +721,26 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
                 counters[6] += 1
             elif intervals.shape[0] > 0 or not certified:  # an uncertain pair is a possible contact at lo
                 t = lo if intervals.shape[0] == 0 else (intervals[0, 0] if status0 == 1 else 0.0)
-                if intervals.shape[0] > 0:  # a first contact found: colliding (an honest count)
+                # the first contact is known when its proven bracket [lo, hi] is within TIME_TOL of it (an
+                # uncertain answer may still have it, its later intervals cut short); else only the bracket is
+                known = intervals.shape[0] > 0 and max(t - lo, hi - t) <= TIME_TOL
+                if known:  # a first contact found: colliding (an honest count)
                     counters[6] += 1
                 if certified:
                     outcome[k] = EXACT_HIT
                 else:
                     outcome[k] = UNCERTAIN
-                    times_hi[k] = hi if intervals.shape[0] == 0 else t
+                    if not known:
+                        t = lo
+                    times_hi[k] = t if known else hi
                     counters[8] += 1
                 times[k] = t
-                points[k] = point
-                normals[k] = normal
+                if known or certified:
+                    points[k] = point
+                    normals[k] = normal
+                else:  # no touch point at a time that is not known
+                    points[k] = 0.0
+                    normals[k] = 0.0
                 if t < best or (t == best and k < best_k):
                     best, best_k = t, k
         if all_pairs:

@@ -1416,6 +1416,12 @@ def prepare_pair(PA, UA, sA, errA, PB, UB, sB, errB, length):
 
 
 @_jit
+def thinner(rx, ry):
+    """True when the body of radii ``rx`` is thin (THIN) and thinner than the body of radii ``ry``."""
+    return rx.max() > THIN * rx.min() and rx.max() / rx.min() > ry.max() / ry.min()
+
+
+@_jit
 def same_orientation(q0, q1):
     """True when two unit quaternions are one orientation up to rounding (see SAME_ORIENTATION)."""
     return (abs(q0[0] - q1[0]) <= SAME_ORIENTATION and abs(q0[1] - q1[1]) <= SAME_ORIENTATION
@@ -1480,6 +1486,13 @@ def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1
     (:func:`F_from_pencil`).  point/normal are zero when there is no external
     touch at t > 0.
     """
+    # the thinner body is taken as A: thin bodies are taken in A's frame, where A's quadric is diagonal, which
+    # keeps only A's small curvatures from the rounding of its large ones; the answer is the same with the
+    # normal turned (it points out of A), and a thin B left as B would need the rational tier far more often
+    swapped = thinner(rb, ra)
+    if swapped:
+        affine_a, affine_b = affine_b, affine_a
+        ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1 = rb, pb0, qb0, pb1, qb1, ra, pa0, qa0, pa1, qa1
     length = max(ra.max(), rb.max())
     translating = same_orientation(qa0, qa1) and same_orientation(qb0, qb1)
     # thin bodies are taken in A's frame (A's quadric diagonal); for the others it buys nothing
@@ -1528,6 +1541,9 @@ def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1
                 normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
         else:
             normal[:] = n
+        if swapped:  # out of the caller's A
+            for m in range(3):
+                normal[m] = -normal[m]
     certified, lo, hi = verdict(intervals, bounds, reached, t_max)
     return status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi
 

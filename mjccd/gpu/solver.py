@@ -1151,6 +1151,10 @@ def rigid_pair(ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, point, nor
     pt = cuda.local.array(3, f8)
     nm = cuda.local.array(3, f8)
 
+    # ccd.thinner: the thinner body is taken as A, its normal turned at the end
+    swapped = _max3(rb) > THIN * _min3(rb) and _max3(rb) / _min3(rb) > _max3(ra) / _min3(ra)
+    if swapped:
+        ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1 = rb, pb0, qb0, pb1, qb1, ra, pa0, qa0, pa1, qa1
     length = max(_max3(ra), _max3(rb))
     translating = same_orientation(qa0, qa1) and same_orientation(qb0, qb1)
     framed = _max3(ra) > THIN * _min3(ra) or _max3(rb) > THIN * _min3(rb)
@@ -1211,6 +1215,9 @@ def rigid_pair(ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, point, nor
         else:
             for m in range(3):
                 normal[m] = nm[m]
+        if swapped:
+            for m in range(3):
+                normal[m] = -normal[m]
     return status0, found, t_in, certified, lo, hi
 
 

@@ -68,6 +68,9 @@ SAME_ORIENTATION = 8 * 2.220446049250313e-16
 EVAL_ROUNDING = 64 * EPS  # relative rounding of evaluating F's rows at a time and of a quartic's maximum
 DOUBLE, DOUBLE_TIGHT, RATIONAL = 0, 1, 2  # precision tiers: constant error bound, coefficient-wise bound, exact
 TIME_TOL = 1e-9           # an event is certified when its time is this close to both ends of its proven bracket
+# half-width of the bracket around a double estimate that the rational tier tries before bisecting to 2^-60: where it
+# holds, the estimate is the answer, proven within 9e-16
+NEAR_SPAN = 2.0 ** -50
 
 
 # ---------------------------------------------------------------- building F
@@ -1839,6 +1842,15 @@ class _ExactPair:
                 hi = mid
         return (float(hi), hi) if separate_at_lo else (float(lo), lo)
 
+    def change_near(self, t, lo, hi, separate_at_lo):
+        """(t, the end of a bracket around t that is not separate, as a Fraction, the bracket's ends) when the
+        exact status taken NEAR_SPAN either side of the double estimate t (inside [lo, hi]) changes there as
+        expected: the event lies within NEAR_SPAN of t.  None otherwise."""
+        a, b = Fraction(max(lo, t - NEAR_SPAN)), Fraction(min(hi, t + NEAR_SPAN))
+        if (self.status(a) == 1) == separate_at_lo and (self.status(b) == 1) != separate_at_lo:
+            return t, (b if separate_at_lo else a), float(a), float(b)
+        return None
+
     def first_not_separate(self, lo, hi, *estimates, samples=16):
         """The earliest of the estimates and of ``samples`` even times in (lo, hi) at which the pair is not
         separate (exactly), or None."""
@@ -1861,10 +1873,13 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
     """Events whose proven bracket is wider than TIME_TOL, settled by bisection on the exact status.
 
     Double precision proved the pair separate before each start bracket and
-    overlapping (or touching) at its end, and the reverse around each end;
-    the exact status at dyadic times inside the bracket finds where it
-    changes.  An event whose ends the exact status does not confirm (a graze
-    inside the rounding band that may be a miss) stays uncertain.
+    overlapping (or touching) at its end, and the reverse around each end.
+    The exact status just either side of the double estimate confirms it
+    within 2^-50 (:meth:`_ExactPair.change_near`: two exact statuses); where
+    it does not, the exact status at dyadic times inside the bracket finds
+    where it changes, to 2^-60.  An event whose ends the exact
+    status does not confirm (a graze inside the rounding band that may be a
+    miss) stays uncertain.
     """
     pair = _ExactPair(a, motion_a, b, motion_b)
     intervals = solution.intervals.copy()
@@ -1877,6 +1892,13 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
         for end, (lo, hi), separate_at_lo in ((0, bounds[k, 0:2], True), (1, bounds[k, 2:4], False)):
             t = intervals[k, end]
             if max(t - lo, hi - t) <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
+                continue
+            near = pair.change_near(t, lo, hi, separate_at_lo) if lo < t < hi else None
+            if near is not None:  # the double estimate confirmed: two exact statuses, no bisection
+                intervals[k, end], boundary, bounds[k, 2 * end], bounds[k, 2 * end + 1] = near
+                if end == 0:
+                    inside = boundary
+                    first_refined = first_refined or k == 0
                 continue
             found = pair.separation_change(lo, hi, separate_at_lo)
             if found is None and end == 0:  # separate again at hi (a graze in the band): look for a contact inside

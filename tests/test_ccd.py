@@ -479,3 +479,32 @@ def test_a_thin_second_body_is_solved_as_the_first():
         assert np.array_equal(ab[7:10], ba[7:10]) and np.array_equal(ab[10:13], -ba[10:13])  # point, normal
         solved += ab[1] > 0
     assert solved >= 10 and rational <= 4
+
+
+def test_rational_tier_confirms_the_double_estimate_as_bisection_would(monkeypatch):
+    """100:1 bodies whose double bracket stays wider than 1e-9: the rational tier's two exact statuses
+    either side of the double estimate give the first contact that bisection on the exact status gives
+    (within the 2^-50 they prove), and it is certified."""
+    from mjccd.bench import peers
+    from mjccd.ccd import RATIONAL, _ExactPair, solve_motions
+
+    rng = np.random.default_rng(5)
+    pairs = []
+    for q in peers.random_rigid_queries(12, seed=9, max_angle=0.5):
+        ra = np.array(q.radii_a, float)
+        ra[rng.integers(3)] *= 0.01
+        pairs.append((mjccd.Ellipsoid(ra), mjccd.Rigid(q.position_a[0], q.quaternion_a[0], q.position_a[1],
+                                                       q.quaternion_a[1]),
+                      mjccd.Ellipsoid(q.radii_b), mjccd.Rigid(q.position_b[0], q.quaternion_b[0], q.position_b[1],
+                                                              q.quaternion_b[1])))
+    near = [solve_motions(*p, first_only=True) for p in pairs]
+    monkeypatch.setattr(_ExactPair, "change_near", lambda self, t, lo, hi, separate_at_lo: None)
+    bisected = [solve_motions(*p, first_only=True) for p in pairs]
+    refined = 0
+    for x, y in zip(near, bisected):
+        assert x.certified and y.certified and len(x.intervals) == len(y.intervals)
+        if x.precision == RATIONAL and len(x.intervals):
+            refined += 1
+            assert abs(x.intervals[0, 0] - y.intervals[0, 0]) <= 2.0 ** -49
+            assert x.bounds[0, 1] - x.bounds[0, 0] <= 2.0 ** -49
+    assert refined >= 3

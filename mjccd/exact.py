@@ -74,6 +74,41 @@ def quadric_exact(radii, position, quaternion):
     return quadric_from_w_exact(G, h, 1, radii)
 
 
+def quadric_exact_integer(radii, position, quaternion):
+    """:func:`quadric_exact` times a positive number that makes every entry an integer (rows of ints).
+
+    The decisions in integers (:func:`static_status_exact`,
+    :func:`touching_point_exact`) take any positive multiple of a quadric;
+    this one is formed in integers throughout, several times faster than in
+    Fractions.  With ``den`` the common denominator of the pose's numbers,
+    ``N = den^2 |q|^2 R`` (integers), ``P = den p`` and ``r_k = a_k / b_k``,
+    the factor is ``|q|^4 den^6 (a_0 a_1 a_2)^2``.
+    """
+    q = [_fr(c) for c in quaternion]
+    p = [_fr(c) for c in position]
+    den = math.lcm(*(c.denominator for c in q + p))
+    w, x, y, z = (c.numerator * (den // c.denominator) for c in q)
+    n = w * w + x * x + y * y + z * z
+    if n == 0:
+        raise InputError("quaternion: zero quaternion")
+    N = [[w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
+         [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
+         [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z]]  # n R
+    P = [c.numerator * (den // c.denominator) for c in p]
+    r = [_fr(c) for c in radii]
+    a = [c.numerator for c in r]
+    b = [c.denominator for c in r]
+    e = [(b[k] * a[(k + 1) % 3] * a[(k + 2) % 3]) ** 2 for k in range(3)]  # (a_0 a_1 a_2)^2 / r_k^2
+    v = [N[0][k] * P[0] + N[1][k] * P[1] + N[2][k] * P[2] for k in range(3)]  # n den R^T p
+    Q = [[0] * 4 for _ in range(4)]
+    for i in range(3):
+        for j in range(i, 3):
+            Q[i][j] = Q[j][i] = den * den * sum(e[k] * N[i][k] * N[j][k] for k in range(3))
+        Q[i][3] = Q[3][i] = -den * sum(e[k] * N[i][k] * v[k] for k in range(3))
+    Q[3][3] = sum(e[k] * v[k] * v[k] for k in range(3)) - (n * den * a[0] * a[1] * a[2]) ** 2
+    return Q
+
+
 # ---------------------------------------------------------------- determinants
 
 

@@ -498,7 +498,8 @@ class Motion(abc.ABC):
 
     @abc.abstractmethod
     def exact_quadric_at(self, radii, t):
-        """The 4x4 quadric at the rational time t (Fractions), exact for this motion's doubles (up to a factor > 0)."""
+        """The 4x4 quadric at the rational time t (Fractions or integers), exact for this motion's doubles (up to a
+        factor > 0)."""
 
     @abc.abstractmethod
     def quadric_bounded_on(self, radii, t0, t1):
@@ -645,7 +646,7 @@ class Static(_WMotion):
         return self.position
 
     def exact_quadric_at(self, radii, t):
-        return exact.quadric_exact(radii, self.position, self.quaternion)
+        return exact.quadric_exact_integer(radii, self.position, self.quaternion)
 
     def translated(self, offset):
         return _shifted(self, offset)
@@ -718,7 +719,7 @@ class Rigid(_TwoPoses, _WMotion):
                              self.position1, self.quaternion1)
 
     def exact_quadric_at(self, radii, t):
-        return exact.quadric_exact(radii, *self._exact_pose_at(t))
+        return exact.quadric_exact_integer(radii, *self._exact_pose_at(t))
 
 
 class Affine(_TwoPoses, Motion):

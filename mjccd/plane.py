@@ -1023,11 +1023,14 @@ def exact_plane_status(A, n, d):
 
 def exact_support_point(A, n):
     """The point of the ellipsoid ``X^T A X <= 0`` deepest along -n, c - sqrt(rho / n^T P^-1 n) P^-1 n, from the
-    exact quadric (Fractions), rounded once per term: accurate far from the origin too."""
+    exact quadric (Fractions or integers, up to a positive factor), rounded once per term: accurate far from the
+    origin too.  Each term is formed from quantities the factor does not change (rho / n^T P^-1 n alone grows
+    with its square)."""
     nf = [Fraction(float(x)) for x in n]
     D, Y, Z, _, rho_D, nY = _exact_parts(A, nf, Fraction(0))
-    k = math.sqrt(max(float(rho_D / nY), 0.0))
-    return np.array([float(-Z[i] / D) - k * float(Y[i] / D) for i in range(3)])
+    ratio = max(Fraction(rho_D) / nY, Fraction(0))
+    offsets = [math.sqrt(float(ratio * (Fraction(Y[i]) / D) ** 2)) for i in range(3)]
+    return np.array([float(Fraction(-Z[i]) / D) - (offsets[i] if Y[i] * D >= 0 else -offsets[i]) for i in range(3)])
 
 
 def _simplest_dyadic(lo, hi):

@@ -1072,7 +1072,7 @@ def static_status_code(radii_a, pos_a, quat_a, radii_b, pos_b, quat_b):
 
 def _exact_code(ra, pa, qa, rb, pb, qb):
     """Exact status of a posed pair (pure Python: for the rare UNDECIDED pair only)."""
-    return exact.static_status_exact(exact.quadric_exact(ra, pa, qa), exact.quadric_exact(rb, pb, qb))
+    return exact.static_status_exact(exact.quadric_exact_integer(ra, pa, qa), exact.quadric_exact_integer(rb, pb, qb))
 
 
 def _pose(pose):

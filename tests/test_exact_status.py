@@ -587,3 +587,23 @@ def test_small_integer_pencils_with_repeated_roots(monkeypatch):
         monkeypatch.setattr(exact, "SUBDIVISIONS", subdivisions)
         for A, B, expected in cases:
             assert exact.static_status_exact(A, B) == expected, (A, B)
+
+
+def test_integer_quadric_is_a_positive_multiple_of_the_rational_one():
+    """exact.quadric_exact_integer against exact.quadric_exact on float and rational poses (far, tiny, thin):
+    the same matrix up to a positive factor, entry for entry."""
+    from fractions import Fraction
+
+    from mjccd import exact
+
+    rng = np.random.default_rng(0)
+    for k in range(200):
+        r = rng.uniform(0.001, 3.0, 3)
+        p = rng.normal(size=3) * 10.0 ** rng.integers(-3, 7)
+        q = rng.normal(size=4)
+        if k % 3 == 0:  # a pose at a dyadic time between two float poses, as the rational tier forms it
+            t = Fraction(int(rng.integers(1, 2 ** 20)), 2 ** 20)
+            p = [Fraction(float(x)) * (1 - t) + Fraction(float(y)) * t for x, y in zip(p, rng.normal(size=3))]
+            q = [Fraction(float(x)) * (1 - t) + Fraction(float(y)) * t for x, y in zip(q, rng.normal(size=4))]
+        assert (exact._integer_matrix(exact.quadric_exact_integer(r, p, q))
+                == exact._integer_matrix(exact.quadric_exact(r, p, q))), k

@@ -1489,9 +1489,9 @@ def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1
     (:func:`F_from_pencil`).  point/normal are zero when there is no external
     touch at t > 0.
     """
-    # the thinner body is taken as A: thin bodies are taken in A's frame, where A's quadric is diagonal, which
-    # keeps only A's small curvatures from the rounding of its large ones; the answer is the same with the
-    # normal turned (it points out of A), and a thin B left as B would need the rational tier far more often
+    # the thinner body is taken as A: in A's frame (below) A's quadric is diagonal, which keeps A's small
+    # curvatures clear of the rounding of its large ones, but not B's (a thin B needed the rational tier far
+    # more often); the answer is the same with the normal turned, as it points out of A
     swapped = thinner(rb, ra)
     if swapped:
         affine_a, affine_b = affine_b, affine_a

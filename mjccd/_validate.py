@@ -48,15 +48,20 @@ def _floats(value, n):
     if kind is np.ndarray:
         if value.dtype is not _FLOAT64 or value.shape != (n,):
             return None
-        xs = value.tolist()
-    elif kind is list or kind is tuple:
-        if len(value) != n or not _PLAIN.issuperset(map(type, value)):
-            return None
-        try:
-            xs = list(map(float, value))
-        except OverflowError:
-            return None
-    else:
+        return finite_floats(value.tolist())
+    if (kind is list or kind is tuple) and len(value) == n:
+        return finite_floats(value)
+    return None
+
+
+def finite_floats(xs, types=_PLAIN):
+    """The numbers ``xs`` (a list or tuple) as a list of finite Python floats, or None when one is not of
+    ``types``, does not fit a double, or is a NaN or infinity (an overflowing sum of finite ones too)."""
+    if not types.issuperset(map(type, xs)):
+        return None
+    try:
+        xs = list(map(float, xs))
+    except OverflowError:
         return None
     total = sum(xs)
     return xs if total - total == 0.0 else None
@@ -76,14 +81,7 @@ def plain_floats(values, lengths):
         xs = [x for value in values for x in value]
     except TypeError:
         return None
-    if not _PLAIN.issuperset(map(type, xs)):
-        return None
-    try:
-        xs = list(map(float, xs))
-    except OverflowError:
-        return None
-    total = sum(xs)
-    return xs if total - total == 0.0 else None
+    return finite_floats(xs)
 
 
 def _shown(value):

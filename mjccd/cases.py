@@ -262,7 +262,6 @@ def _case_list(doc):
 # ---------------------------------------------------------------- the two-pose fast path
 
 _NUMBER = frozenset((int, float))  # what json.loads makes of a number (bool, its subclass, is not one)
-_FLOAT = {float}
 
 
 def _plain_unit(q):
@@ -313,17 +312,9 @@ def _plain_body(case, key):
             return None
         xs += position
         xs += quaternion
-    types = set(map(type, xs))
-    if types != _FLOAT:  # JSON integers among them (a bool or anything else is not a number)
-        if not _NUMBER.issuperset(types):
-            return None
-        try:
-            xs = list(map(float, xs))
-        except OverflowError:
-            return None
-    total = sum(xs)
+    xs = _validate.finite_floats(xs, _NUMBER)
     lo, hi = _validate.LENGTH_RANGE
-    if total - total != 0.0 or not (lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi):
+    if xs is None or not (lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi):
         return None
     for k in range(3, len(xs), 7):  # the positions (a direction may be longer)
         if not (-hi <= xs[k] <= hi and -hi <= xs[k + 1] <= hi and -hi <= xs[k + 2] <= hi):

@@ -1869,6 +1869,28 @@ class _ExactPair:
         return self.origin + np.array(point), np.array(normal)
 
 
+def _settled_event(pair, t, lo, hi, separate_at_lo, interval, inside):
+    """(time, boundary, bracket lo, bracket hi) of the event estimated at t in the double bracket [lo, hi], in
+    rational arithmetic, or None when the exact status does not confirm it.
+
+    The estimate confirmed by two exact statuses (:meth:`_ExactPair.change_near`), or else bisection to the
+    last bit (the bracket is then the time itself): for an entry (``separate_at_lo``) that finds the pair
+    separate again at hi (a graze in the band), from a time inside ``interval`` that is not separate; for an
+    exit whose lower end is not inside, from ``inside``, a time the pair is not separate.
+    """
+    if lo < t < hi:
+        near = pair.change_near(t, lo, hi, separate_at_lo)
+        if near is not None:
+            return near
+    found = pair.separation_change(lo, hi, separate_at_lo)
+    if found is None and separate_at_lo:
+        probe = pair.first_not_separate(lo, hi, interval[0], interval[1])
+        found = None if probe is None else pair.separation_change(lo, probe, True)
+    if found is None and not separate_at_lo:
+        found = pair.separation_change(inside, hi, False)
+    return None if found is None else (found[0], found[1], found[0], found[0])
+
+
 def _refine_exactly(a, motion_a, b, motion_b, solution):
     """Events whose proven bracket is wider than TIME_TOL, settled by bisection on the exact status.
 
@@ -1893,24 +1915,11 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
             t = intervals[k, end]
             if max(t - lo, hi - t) <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
                 continue
-            near = pair.change_near(t, lo, hi, separate_at_lo) if lo < t < hi else None
-            if near is not None:  # the double estimate confirmed: two exact statuses, no bisection
-                intervals[k, end], boundary, bounds[k, 2 * end], bounds[k, 2 * end + 1] = near
-                if end == 0:
-                    inside = boundary
-                    first_refined = first_refined or k == 0
-                continue
-            found = pair.separation_change(lo, hi, separate_at_lo)
-            if found is None and end == 0:  # separate again at hi (a graze in the band): look for a contact inside
-                probe = pair.first_not_separate(lo, hi, intervals[k, 0], intervals[k, 1])
-                found = None if probe is None else pair.separation_change(lo, probe, True)
-            if found is None and end == 1:  # the exit's lower end is not inside: start from a time that is
-                found = pair.separation_change(inside, hi, False)
+            found = _settled_event(pair, t, lo, hi, separate_at_lo, intervals[k], inside)
             if found is None:
                 certified = False
                 continue
-            intervals[k, end], boundary = found
-            bounds[k, 2 * end:2 * end + 2] = intervals[k, end]
+            intervals[k, end], boundary, bounds[k, 2 * end], bounds[k, 2 * end + 1] = found
             if end == 0:
                 inside = boundary
                 first_refined = first_refined or k == 0

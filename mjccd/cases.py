@@ -265,19 +265,12 @@ _NUMBER = frozenset((int, float))  # what json.loads makes of a number (bool, it
 
 
 def _plain_unit(q):
-    """The unit quaternion the motion makes of the direction :func:`_direction` makes of ``q`` (finite
-    floats), or None when that is a zero quaternion.
-
-    Scaled by a power of two first, as :func:`_direction` does, wherever that
-    scaling could round (entries above 1): elsewhere it is exact, and
-    ``math.hypot`` and the quotients do not see it.
+    """The unit quaternion the motion makes of ``q`` (four finite floats): its quotients by ``math.hypot``, as
+    :func:`mjccd._validate.unit_quaternion` takes them; None for a zero quaternion, or one whose length
+    overflows (:func:`solve_case` then reads it).
     """
-    exponent = math.frexp(max(abs(q[0]), abs(q[1]), abs(q[2]), abs(q[3])))[1]
-    if exponent > 0:
-        q = [math.ldexp(q[0], -exponent), math.ldexp(q[1], -exponent), math.ldexp(q[2], -exponent),
-             math.ldexp(q[3], -exponent)]
     norm = math.hypot(q[0], q[1], q[2], q[3])
-    if norm < _validate.MIN_NORM:
+    if not _validate.MIN_NORM <= norm < math.inf:
         return None
     return [q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm]
 
@@ -298,41 +291,31 @@ def _plain_body(case, key):
         return None
     kind = motion.get("type")
     if kind == "static":
-        poses = (motion,)
+        start = end = motion
     elif kind == "rigid" or kind == "affine":
-        poses = (motion.get("start"), motion.get("end"))
+        start, end = motion.get("start"), motion.get("end")
+        if type(end) is not dict:
+            return None
     else:
         return None
-    xs = xs[:]  # radii, then each pose's position and quaternion
-    for pose in poses:
-        if type(pose) is not dict:
-            return None
-        position, quaternion = pose.get("position"), pose.get("quaternion")
-        if type(position) is not list or type(quaternion) is not list or len(position) != 3 or len(quaternion) != 4:
-            return None
-        xs += position
-        xs += quaternion
-    xs = _validate.finite_floats(xs, _NUMBER)
-    lo, hi = _validate.LENGTH_RANGE
-    if xs is None or not (lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi):
+    if type(start) is not dict:
         return None
-    for k in range(3, len(xs), 7):  # the positions (a direction may be longer)
-        if not (-hi <= xs[k] <= hi and -hi <= xs[k + 1] <= hi and -hi <= xs[k + 2] <= hi):
-            return None
-    out = xs[0:3]
-    for k in range(3, len(xs), 7):
-        quaternion = _plain_unit(xs[k + 3:k + 7])
-        if quaternion is None:
-            return None
-        out += xs[k:k + 3]
-        out += quaternion
-    if kind == "static":
-        out += out[3:]
-        return False, out
-    q0, q1 = out[6:10], out[13:17]
+    p0, q0, p1, q1 = start.get("position"), start.get("quaternion"), end.get("position"), end.get("quaternion")
+    if (type(p0) is not list or type(q0) is not list or type(p1) is not list or type(q1) is not list
+            or len(p0) != 3 or len(q0) != 4 or len(p1) != 3 or len(q1) != 4):
+        return None
+    xs = _validate.finite_floats(xs + p0 + q0 + p1 + q1, _NUMBER)  # radii, then each pose's position and quaternion
+    lo, hi = _validate.LENGTH_RANGE
+    if (xs is None or not (lo <= xs[0] <= hi and lo <= xs[1] <= hi and lo <= xs[2] <= hi)
+            or max(abs(xs[3]), abs(xs[4]), abs(xs[5]), abs(xs[10]), abs(xs[11]), abs(xs[12])) > hi):
+        return None
+    q0 = _plain_unit(xs[6:10])
+    q1 = q0 if kind == "static" else _plain_unit(xs[13:17])
+    if q0 is None or q1 is None:
+        return None
     if kind == "rigid" and q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0.0:
-        out[13:17] = [-q1[0], -q1[1], -q1[2], -q1[3]]  # as Rigid aligns them
-    return kind == "affine", out
+        q1 = [-q1[0], -q1[1], -q1[2], -q1[3]]  # as Rigid aligns them
+    return kind == "affine", xs[0:6] + q0 + xs[10:13] + q1
 
 
 def _plain_case(case):

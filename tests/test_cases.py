@@ -87,6 +87,26 @@ def test_the_fast_reader_takes_only_plain_valid_two_pose_cases():
         assert cases._plain_case(bad) is None, path
 
 
+@pytest.mark.parametrize("scale", [1e-11, 1e-3, 1.0, 3.0, 1e150, 1e307])
+@pytest.mark.parametrize("kinds", [("rigid", "static"), ("affine", "rigid"), ("static", "affine")])
+def test_the_fast_reader_makes_the_constructors_floats_at_every_quaternion_scale(kinds, scale):
+    # the fast reader's unit quaternions are bit for bit those of the motions, also for integer entries and
+    # quaternions long enough to overflow a sum of squares
+    r = np.random.default_rng(int(scale < 1) + 7 * len(kinds[0]))
+    for k in range(20):
+        case = _two_pose_case(r, k, kinds)
+        for key in ("a", "b"):
+            motion = case[key]["motion"]
+            for pose in ((motion,) if motion["type"] == "static" else (motion["start"], motion["end"])):
+                q = np.array(pose["quaternion"]) * scale
+                pose["quaternion"] = [int(round(x)) for x in q] if k % 5 == 0 and scale >= 3.0 else q.tolist()
+        numbers, affine = cases._plain_case(case)
+        a, ma = cases._body(case, "a")
+        b, mb = cases._body(case, "b")
+        assert list(affine) == [kinds[0] == "affine", kinds[1] == "affine"]
+        assert numbers == a.radii.tolist() + ma._row.tolist() + b.radii.tolist() + mb._row.tolist()
+
+
 def test_a_failing_batch_is_solved_case_by_case(monkeypatch):
     doc = _document()
     want = mjccd.solve_cases(doc)["results"]

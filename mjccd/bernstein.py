@@ -19,8 +19,27 @@ import numba
 import numpy as np
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
-# forceinline=False: numba hands a caller's forceinline down to the callees it compiles
+# forceinline=False: numba hands a caller's forceinline down to the callees it compiles.  Arrays are copied by
+# loops (copy_into), never by a slice assignment from an array: that makes numba compile a shape-mismatch
+# error formatted as a string into the kernel, whose string code LLVM then optimises again in every kernel that
+# calls it (about 0.16 s each)
 _jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+
+
+@_jit
+def copy_into(dst, src):
+    """``dst[:] = src`` for two 1-D arrays of one length, as a loop (see ``_jit``)."""
+    for k in range(src.shape[0]):
+        dst[k] = src[k]
+    return dst
+
+
+@_jit
+def add_into(dst, src, scale):
+    """``dst += scale * src`` for two 1-D arrays of one length, as a loop (see ``_jit``)."""
+    for k in range(src.shape[0]):
+        dst[k] += scale * src[k]
+    return dst
 
 
 # ---------------------------------------------------------------- binomials
@@ -37,7 +56,8 @@ def binomial_row(n):
     """The binomial coefficients C(n, 0..n) as floats."""
     row = np.empty(n + 1)
     if n <= TABLED_DEGREE:
-        row[:] = BINOMIALS[n, :n + 1]
+        for k in range(n + 1):
+            row[k] = BINOMIALS[n, k]
         return row
     row[0] = 1.0
     for i in range(1, n + 1):
@@ -207,7 +227,7 @@ def adjugate3(M):
             r0, r1 = (1 if j == 0 else 0), (1 if j == 2 else 2)  # the rows other than j, ascending
             c0, c1 = (1 if i == 0 else 0), (1 if i == 2 else 2)
             minor = add(multiply(M[r0, c0], M[r1, c1]), -multiply(M[r0, c1], M[r1, c0]))
-            adj[i, j] = minor if (i + j) % 2 == 0 else -minor
+            copy_into(adj[i, j], minor if (i + j) % 2 == 0 else -minor)
     det = add(add(multiply(M[0, 0], adj[0, 0]), multiply(M[0, 1], adj[1, 0])), multiply(M[0, 2], adj[2, 0]))
     return adj, det
 
@@ -389,13 +409,13 @@ def first_root(c, tol):
     stack_hi = np.empty(max_depth)
     hull = np.empty(n + 1, dtype=np.int64)
     cur = np.empty(n + 1)
-    stack_c[0, :] = c
+    copy_into(stack_c[0], c)
     stack_lo[0] = 0.0
     stack_hi[0] = 1.0
     top = 1
     while top > 0:
         top -= 1
-        cur[:] = stack_c[top]
+        copy_into(cur, stack_c[top])
         lo = stack_lo[top]
         hi = stack_hi[top]
         positive_at_lo = cur[0] > 0.0
@@ -415,7 +435,7 @@ def first_root(c, tol):
             if beta - alpha > 0.7:
                 # clipping does not shrink enough: bisect, left half first
                 mid = lo + 0.5 * width
-                stack_c[top, :] = cur
+                copy_into(stack_c[top], cur)
                 _keep_right(stack_c[top], 0.5)
                 stack_lo[top] = mid
                 stack_hi[top] = hi
@@ -577,5 +597,5 @@ def bivariate_elevate_t(F, r):
     """Elevate the t-degree of a bivariate polynomial by ``r``."""
     out = np.empty((F.shape[0], F.shape[1] + r))
     for i in range(F.shape[0]):
-        out[i] = elevate(F[i].copy(), r)
+        copy_into(out[i], elevate(F[i].copy(), r))
     return out

@@ -38,7 +38,8 @@ from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_ma
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
 # forceinline=False: numba hands a caller's forceinline down to the callees it compiles.  A literal argument
-# (0, 1, True) compiles a kernel once per value: call sites pass np.intp(0), np.bool_(True) instead
+# (0, 1, True) compiles a kernel once per value: call sites pass np.intp(0), np.bool_(True) instead; arrays are
+# copied by loops (bernstein.copy_into), never by a slice assignment from an array (see bernstein's _jit)
 _jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 # a kernel with one call site in compiled code is typed inside its caller (numba IR inlining): no library of its
 # own, which LLVM would optimise and compile again with all its callees (docs/benchmarks.md, "First use");
@@ -951,14 +952,14 @@ def _exit_split_t_into(work, low, high):
 def _exit_split_u_into(work, low, high):
     """The box ``work`` (destroyed) halved in u into low and high: de Casteljau at u = 1/2 on all columns."""
     m = work.shape[0] - 1
-    low[0] = work[0]
-    high[m] = work[m]
+    bz.copy_into(low[0], work[0])
+    bz.copy_into(high[m], work[m])
     for r in range(1, m + 1):
         for i in range(m - r + 1):
             for j in range(work.shape[1]):
                 work[i, j] = 0.5 * (work[i, j] + work[i + 1, j])
-        low[r] = work[0]
-        high[m - r] = work[m - r]
+        bz.copy_into(low[r], work[0])
+        bz.copy_into(high[m - r], work[m - r])
 
 
 @_jit
@@ -986,7 +987,7 @@ def _exit_box_search(F, t_start, t_end, capacity, max_pops):
     work = np.empty((rows, cols))
     upper = np.empty(cols)
     for i in range(rows):
-        pool[0, i] = F[i]
+        bz.copy_into(pool[0, i], F[i])
         bz.restrict_into(pool[0, i], t_start, t_end)
     ends[0] = t_end
     top = 1  # slots below top have been used; those free since are in free[:nfree]
@@ -1054,7 +1055,8 @@ def _exit_box_search(F, t_start, t_end, capacity, max_pops):
                 lo = min(lo, C[i, j])
                 hi = max(hi, C[i, j])
             span_u = max(span_u, hi - lo)
-        work[:] = C
+        for i in range(rows):
+            bz.copy_into(work[i], C[i])
         if span_t >= span_u:  # halve the wider direction: t (first half ends at tm) or u
             _exit_split_t_into(work, C, pool[b])
             a_end = b_start = 0.5 * (t0 + t1)
@@ -1288,10 +1290,11 @@ def solve_intervals(F, E, t_max, first_only):
         else:
             if k == out.shape[0]:
                 bigger = np.empty((2 * k, 2))
-                bigger[:k] = out
-                out = bigger
                 wider = np.empty((2 * k, 4))
-                wider[:k] = bounds
+                for i in range(k):
+                    bz.copy_into(bigger[i], out[i])
+                    bz.copy_into(wider[i], bounds[i])
+                out = bigger
                 bounds = wider
             out[k, 0] = t_in
             out[k, 1] = t_out
@@ -1359,7 +1362,7 @@ def _reframe(P, U, s, origin, length):
         acc = bz.elevate(U[i].copy(), q - U.shape[1] + 1)
         for j in range(3):
             acc = acc + origin[j] * bz.elevate(P[i, j].copy(), q - p)
-        Un[i] = acc * length
+        bz.copy_into(Un[i], acc * length)
     quad = np.zeros(q + 1)
     for i in range(3):
         quad += origin[i] * (Un[i] / length + bz.elevate(U[i].copy(), q - U.shape[1] + 1))
@@ -1413,8 +1416,10 @@ def prepare_pair(PA, UA, sA, errA, PB, UB, sB, errB, length):
     pencil_side_into(*_reframe(PA, UA, sA, origin, length), Pp, Up, sp, 0)
     pencil_side_into(*_reframe(PB, UB, sB, origin, length), Pp, Up, sp, 1)
     err = np.empty((2, 4, 4))
-    err[0] = _reframed_errors(PA, UA, sA, errA, origin, length)
-    err[1] = _reframed_errors(PB, UB, sB, errB, origin, length)
+    for side, side_err in enumerate((_reframed_errors(PA, UA, sA, errA, origin, length),
+                                     _reframed_errors(PB, UB, sB, errB, origin, length))):
+        for i in range(4):
+            bz.copy_into(err[side, i], side_err[i])
     return (Pp, Up, sp), err, origin
 
 
@@ -1543,7 +1548,7 @@ def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1
                 point[m] = origin[m] + frame[m, 0] * local[0] + frame[m, 1] * local[1] + frame[m, 2] * local[2]
                 normal[m] = frame[m, 0] * n[0] + frame[m, 1] * n[1] + frame[m, 2] * n[2]
         else:
-            normal[:] = n
+            bz.copy_into(normal, n)
         if swapped:  # out of the caller's A
             for m in range(3):
                 normal[m] = -normal[m]
@@ -1601,10 +1606,8 @@ def two_pose_batch(affine, radii, rows, t_max, first_only, starts):
                             t_max, first_only)
         need = out.shape[0]
         if pos + need > buf.shape[0]:
-            bigger = np.empty(max(2 * buf.shape[0], pos + need))
-            bigger[:pos] = buf[:pos]
-            buf = bigger
-        buf[pos:pos + need] = out
+            buf = bz.copy_into(np.empty(max(2 * buf.shape[0], pos + need)), buf[:pos])
+        bz.copy_into(buf[pos:pos + need], out)
         starts[k] = pos
         pos += need
     starts[K] = pos

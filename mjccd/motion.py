@@ -45,15 +45,15 @@ def _quat_rotation_poly(qc):
     wx, wy, wz = mul(w, x), mul(w, y), mul(w, z)
     n = ww.shape[0]
     R = np.empty((3, 3, n))
-    R[0, 0] = ww + xx - yy - zz
-    R[0, 1] = 2.0 * (xy - wz)
-    R[0, 2] = 2.0 * (xz + wy)
-    R[1, 0] = 2.0 * (xy + wz)
-    R[1, 1] = ww - xx + yy - zz
-    R[1, 2] = 2.0 * (yz - wx)
-    R[2, 0] = 2.0 * (xz - wy)
-    R[2, 1] = 2.0 * (yz + wx)
-    R[2, 2] = ww - xx - yy + zz
+    bz.copy_into(R[0, 0], ww + xx - yy - zz)
+    bz.copy_into(R[0, 1], 2.0 * (xy - wz))
+    bz.copy_into(R[0, 2], 2.0 * (xz + wy))
+    bz.copy_into(R[1, 0], 2.0 * (xy + wz))
+    bz.copy_into(R[1, 1], ww - xx + yy - zz)
+    bz.copy_into(R[1, 2], 2.0 * (yz - wx))
+    bz.copy_into(R[2, 0], 2.0 * (xz - wy))
+    bz.copy_into(R[2, 1], 2.0 * (yz + wx))
+    bz.copy_into(R[2, 2], ww - xx - yy + zz)
     return R, ww + xx + yy + zz
 
 
@@ -64,7 +64,7 @@ def _matvec_poly(G, h):
     out = np.zeros((3, n))
     for i in range(3):
         for k in range(3):
-            out[i] += bz.multiply(G[i, k].copy(), h[k].copy())
+            bz.add_into(out[i], bz.multiply(G[i, k].copy(), h[k].copy()), 1.0)
     return out
 
 
@@ -76,7 +76,7 @@ def _matmul_poly(Ga, Gb):
     for i in range(3):
         for j in range(3):
             for k in range(3):
-                out[i, j] += bz.multiply(Ga[i, k].copy(), Gb[k, j].copy())
+                bz.add_into(out[i, j], bz.multiply(Ga[i, k].copy(), Gb[k, j].copy()), 1.0)
     return out
 
 
@@ -88,7 +88,7 @@ def w_of_rotation(qc):
     G = np.empty((3, 3, n))
     for i in range(3):
         for j in range(3):
-            G[i, j] = R[j, i]
+            bz.copy_into(G[i, j], R[j, i])
     return G, np.zeros((3, 1)), norm2
 
 
@@ -108,11 +108,12 @@ def w_compose(Ga, ha, ga, Gb, hb, gb):
     h1 = _matvec_poly(Gb, ha)
     h2 = np.empty((3, hb.shape[1] + ga.shape[0] - 1))
     for i in range(3):
-        h2[i] = bz.multiply(hb[i].copy(), ga)
+        bz.copy_into(h2[i], bz.multiply(hb[i].copy(), ga))
     deg = max(h1.shape[1], h2.shape[1]) - 1
     h = np.empty((3, deg + 1))
     for i in range(3):
-        h[i] = bz.elevate(h1[i].copy(), deg + 1 - h1.shape[1]) + bz.elevate(h2[i].copy(), deg + 1 - h2.shape[1])
+        bz.copy_into(h[i], bz.elevate(h1[i].copy(), deg + 1 - h1.shape[1])
+                     + bz.elevate(h2[i].copy(), deg + 1 - h2.shape[1]))
     return G, h, bz.multiply(gb, ga)
 
 
@@ -139,13 +140,13 @@ def quadric_from_w(G, h, g, radii):
     for i in range(3):
         for j in range(i, 3):
             for k in range(3):
-                P[i, j] += d[k] * bz.multiply(G[k, i].copy(), G[k, j].copy())
-            P[j, i] = P[i, j]
+                bz.add_into(P[i, j], bz.multiply(G[k, i].copy(), G[k, j].copy()), d[k])
+            bz.copy_into(P[j, i], P[i, j])
     nU = nG + h.shape[1] - 1
     U = np.zeros((3, nU))
     for i in range(3):
         for k in range(3):
-            U[i] += d[k] * bz.multiply(G[k, i].copy(), h[k].copy())
+            bz.add_into(U[i], bz.multiply(G[k, i].copy(), h[k].copy()), d[k])
     hh = np.zeros(2 * h.shape[1] - 1)
     for k in range(3):
         hh += d[k] * bz.multiply(h[k].copy(), h[k].copy())
@@ -282,8 +283,9 @@ def quadric_affine(radii, p0, q0, p1, q1):
                 P[i, j, 0] += R0[i, k] * R0[j, k] * d[k]
                 P[i, j, 1] += R1[i, k] * R1[j, k] * d[k]
     c = np.empty((3, 2))
-    c[:, 0] = p0
-    c[:, 1] = p1
+    for i in range(3):
+        c[i, 0] = p0[i]
+        c[i, 1] = p1[i]
     Qc = _matvec_poly(P, c)  # degree 2
     U = -Qc
     s = np.zeros(4)

@@ -908,8 +908,8 @@ def _w_plane_poly(G, h, g, rs, n, dh, Ga, ha, ga):
         for j in range(3):
             r0, r1 = (1 if j == 0 else 0), (1 if j == 2 else 2)
             c0, c1 = (1 if i == 0 else 0), (1 if i == 2 else 2)
-            adja[i, j] = bz.multiply(Ga[r0, c0].copy(), Ga[r1, c1].copy()) \
-                + bz.multiply(Ga[r0, c1].copy(), Ga[r1, c0].copy())
+            bz.copy_into(adja[i, j], bz.multiply(Ga[r0, c0].copy(), Ga[r1, c1].copy())
+                         + bz.multiply(Ga[r0, c1].copy(), Ga[r1, c0].copy()))
     deta = bz.add(bz.add(bz.multiply(Ga[0, 0].copy(), adja[0, 0].copy()),
                          bz.multiply(Ga[0, 1].copy(), adja[1, 0].copy())),
                   bz.multiply(Ga[0, 2].copy(), adja[2, 0].copy()))

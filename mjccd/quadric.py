@@ -109,10 +109,11 @@ def quadric_matrix(radii, position, quaternion):
                 acc += R[i, k] * R[j, k] / (radii[k] * radii[k])
             Q[i, j] = acc
     out = np.empty((4, 4))
-    out[:3, :3] = Q
     Qp = Q @ position
-    out[:3, 3] = -Qp
-    out[3, :3] = -Qp
+    for i in range(3):  # element by element (see bernstein's _jit)
+        for j in range(3):
+            out[i, j] = Q[i, j]
+        out[i, 3] = out[3, i] = -Qp[i]
     out[3, 3] = position @ Qp - 1.0
     return out
 
@@ -1023,9 +1024,11 @@ def separating_plane_matrices(A, B):
     pi = pi / norm
     if pi @ Pa > 0.0:  # A's inner point must be on the negative side
         pi = -pi
-    plane[:] = pi
-    pa[:] = Ta[:3]
-    pb[:] = Tb[:3]
+    for i in range(3):  # element by element (see bernstein's _jit)
+        plane[i] = pi[i]
+        pa[i] = Ta[i]
+        pb[i] = Tb[i]
+    plane[3] = pi[3]
     return True, plane, pa, pb
 
 

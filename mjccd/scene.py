@@ -498,6 +498,19 @@ def _plane_solve(affine, radii, p0, q0, p1, q1_raw, planes, plane_pairs, npairs,
 
 
 @_jit
+def _grown(iv, owner, niv):
+    """The all-pairs interval list (``iv`` (n, 2) and ``owner`` (n,), the first ``niv`` rows filled) with room for
+    more: copies twice as long, element by element (see bernstein's _jit)."""
+    bigger = np.empty((2 * niv + 16, 2))
+    bigger_o = np.empty(2 * niv + 16, dtype=np.int64)
+    for r in range(niv):
+        bigger[r, 0] = iv[r, 0]
+        bigger[r, 1] = iv[r, 1]
+        bigger_o[r] = owner[r]
+    return bigger, bigger_o
+
+
+@_jit
 def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
     """One frame over all pairs of the workspace ``ws`` (a :class:`WorkspaceRef`); returns (best pair, rows, iv, owner).
 
@@ -681,12 +694,7 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
             if all_pairs:
                 for r in range(nruns):
                     if niv == iv.shape[0]:
-                        bigger = np.empty((2 * niv + 16, 2))
-                        bigger[:niv] = iv
-                        iv = bigger
-                        bigger_o = np.empty(2 * niv + 16, dtype=np.int64)
-                        bigger_o[:niv] = owner
-                        owner = bigger_o
+                        iv, owner = _grown(iv, owner, niv)
                     iv[niv, 0] = runs[r, 0]
                     iv[niv, 1] = runs[r, 1]
                     owner[niv] = k
@@ -736,8 +744,9 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
                     counters[8] += 1
                 times[k] = t
                 if known or certified:
-                    points[k] = point
-                    normals[k] = normal
+                    for m in range(3):
+                        points[k, m] = point[m]
+                        normals[k, m] = normal[m]
                 else:  # no touch point at a time that is not known
                     points[k] = 0.0
                     normals[k] = 0.0
@@ -746,13 +755,9 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
         if all_pairs:
             for r in range(intervals.shape[0]):
                 if niv == iv.shape[0]:
-                    bigger = np.empty((2 * niv + 16, 2))
-                    bigger[:niv] = iv
-                    iv = bigger
-                    bigger_o = np.empty(2 * niv + 16, dtype=np.int64)
-                    bigger_o[:niv] = owner
-                    owner = bigger_o
-                iv[niv] = intervals[r]
+                    iv, owner = _grown(iv, owner, niv)
+                iv[niv, 0] = intervals[r, 0]
+                iv[niv, 1] = intervals[r, 1]
                 owner[niv] = k
                 niv += 1
         if timing:
@@ -791,8 +796,9 @@ def run_kernel(ws, positions, quats, iv, owner, new_only, timing, out):
         best_pair[f] = k
         best_time[f] = times[k] if k >= 0 else -1.0
         if k >= 0:
-            best_point[f] = points[k]
-            best_normal[f] = normals[k]
+            for m in range(3):
+                best_point[f, m] = points[k, m]
+                best_normal[f, m] = normals[k, m]
         if timing:
             frame_ticks[f] = _ticks() - t_start
 

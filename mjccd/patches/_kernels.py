@@ -507,24 +507,38 @@ def make_workspace(nmax):
                      np.empty((15, 3)), np.empty((32, 2)))
 
 
+# arrays are copied element by element (_copy_rows_into): a slice assignment from an array makes numba compile a
+# shape-mismatch error formatted as a string into the kernel, which LLVM optimises again in every caller
+
+
+@_jit
+def _copy_rows_into(dst, src):
+    """``dst[:len(src)] = src`` for two 2-D arrays of one width, as a loop."""
+    for i in range(src.shape[0]):
+        for j in range(src.shape[1]):
+            dst[i, j] = src[i, j]
+
+
 @_jit
 def _grow3(a, cap):
     b = np.empty((cap, a.shape[1], a.shape[2]))
-    b[:a.shape[0]] = a
+    for i in range(a.shape[0]):
+        _copy_rows_into(b[i], a[i])
     return b
 
 
 @_jit
 def _grow2(a, cap):
     b = np.empty((cap, a.shape[1]), a.dtype)
-    b[:a.shape[0]] = a
+    _copy_rows_into(b, a)
     return b
 
 
 @_jit
 def _grow1(a, cap):
     b = np.zeros(cap, a.dtype)
-    b[:a.shape[0]] = a
+    for i in range(a.shape[0]):
+        b[i] = a[i]
     return b
 
 
@@ -541,7 +555,7 @@ def _make_pool(roots, kind):
     pool = np.empty((cap, roots.shape[1], 7))
     reg = np.empty((cap, 4))
     for i in range(k):
-        pool[i] = roots[i]
+        _copy_rows_into(pool[i], roots[i])
         reg[i, 0] = 0.0
         reg[i, 1] = 0.0
         reg[i, 2] = 1.0 if kind != 0 else 0.0
@@ -566,8 +580,9 @@ def _store(pool, reg, ref, free, nfree, top, hom, region):
     else:
         j = top
         top += 1
-    pool[j] = hom
-    reg[j] = region
+    _copy_rows_into(pool[j], hom)
+    for m in range(region.shape[0]):
+        reg[j, m] = region[m]
     ref[j] = 0
     return j, nfree, top
 

@@ -1466,20 +1466,14 @@ def _in_frame_of(qa0, qa1, pa0, pa1, qb0, qb1, pb0, pb1, translating):
     return ident, qa1n, out[0], out[1], _conj_mul(qa0, qb0), _conj_mul(qa0, qb1), out[2], out[3]
 
 
-@_jit
-def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
-    """Exact CCD of two ellipsoids that each move between two poses (:func:`_two_pose`): the entry of compiled
-    callers such as :func:`exact_pair`."""
-    return _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only)
-
-
 @_inline
-def _two_pose(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
+def two_pose_pair(affine_a, affine_b, ra, pa0, qa0, pa1, qa1, rb, pb0, qb0, pb1, qb1, t_max, first_only):
     """Exact CCD of two ellipsoids that each move between two poses.
 
-    Typed inside each entry that calls it (:func:`two_pose_pair`,
-    :func:`two_pose_rows`), so that the Python API's first call compiles the
-    solver once, not once for a callee and again inside its caller.
+    Typed inside each compiled entry that calls it (:func:`two_pose_rows`
+    for the Python API, the scene's frame kernel and :func:`rigid_first_contact`
+    through :func:`exact_pair`), so that each compiles the solver once, not
+    once in a library of its own and again inside its caller.
 
     Returns (status at start, intervals (k, 2), bounds (k, 4), point,
     normal, reached, precision tier, certified, bracket_lo, bracket_hi); see
@@ -1585,7 +1579,7 @@ def pack_solution(out, status0, intervals, bounds, point, normal, reached, tier,
 def two_pose_rows(affine_a, affine_b, ra, row_a, rb, row_b, t_max, first_only):
     """:func:`two_pose_pair` on the motions' rows ``[p0, q0, p1, q1]`` (14,), answered in one flat array
     (:func:`pack_solution`): one call and one array across the boundary, for the Python API."""
-    status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi = _two_pose(
+    status0, intervals, bounds, point, normal, reached, tier, certified, lo, hi = two_pose_pair(
         affine_a, affine_b, ra, row_a[0:3], row_a[3:7], row_a[7:10], row_a[10:14],
         rb, row_b[0:3], row_b[3:7], row_b[7:10], row_b[10:14], t_max, first_only)
     out = np.empty(PACKED_HEAD + 6 * intervals.shape[0])

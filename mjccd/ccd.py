@@ -1416,10 +1416,11 @@ def prepare_pair(PA, UA, sA, errA, PB, UB, sB, errB, length):
     pencil_side_into(*_reframe(PA, UA, sA, origin, length), Pp, Up, sp, 0)
     pencil_side_into(*_reframe(PB, UB, sB, origin, length), Pp, Up, sp, 1)
     err = np.empty((2, 4, 4))
-    for side, side_err in enumerate((_reframed_errors(PA, UA, sA, errA, origin, length),
-                                     _reframed_errors(PB, UB, sB, errB, origin, length))):
-        for i in range(4):
-            bz.copy_into(err[side, i], side_err[i])
+    err_a = _reframed_errors(PA, UA, sA, errA, origin, length)
+    err_b = _reframed_errors(PB, UB, sB, errB, origin, length)
+    for i in range(4):
+        bz.copy_into(err[0, i], err_a[i])
+        bz.copy_into(err[1, i], err_b[i])
     return (Pp, Up, sp), err, origin
 
 

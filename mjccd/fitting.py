@@ -346,7 +346,7 @@ def _khachiyan_weights(P, u, tolerance, max_iterations):
     n = P.shape[0]
     d1 = 4.0
     Q = np.ones((n, 4))
-    for i in range(n):  # element by element: a slice assignment from an array compiles a formatted error message
+    for i in range(n):  # element by element (see mjccd.bernstein's _jit)
         Q[i, 0] = P[i, 0]
         Q[i, 1] = P[i, 1]
         Q[i, 2] = P[i, 2]

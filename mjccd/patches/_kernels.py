@@ -13,6 +13,7 @@ from collections import namedtuple
 import numpy as np
 import numba
 
+from mjccd.bernstein import copy_into
 from mjccd.sorting import sort_by_key
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
@@ -507,16 +508,14 @@ def make_workspace(nmax):
                      np.empty((15, 3)), np.empty((32, 2)))
 
 
-# arrays are copied element by element (_copy_rows_into): a slice assignment from an array makes numba compile a
-# shape-mismatch error formatted as a string into the kernel, which LLVM optimises again in every caller
+# arrays are copied by loops (copy_into), never by a slice assignment from an array (see mjccd.bernstein's _jit)
 
 
 @_jit
 def _copy_rows_into(dst, src):
-    """``dst[:len(src)] = src`` for two 2-D arrays of one width, as a loop."""
+    """``dst[:len(src)] = src`` for two 2-D arrays of one width, row by row."""
     for i in range(src.shape[0]):
-        for j in range(src.shape[1]):
-            dst[i, j] = src[i, j]
+        copy_into(dst[i], src[i])
 
 
 @_jit
@@ -536,10 +535,7 @@ def _grow2(a, cap):
 
 @_jit
 def _grow1(a, cap):
-    b = np.zeros(cap, a.dtype)
-    for i in range(a.shape[0]):
-        b[i] = a[i]
-    return b
+    return copy_into(np.zeros(cap, a.dtype), a)
 
 
 # ---------------------------------------------------------------------------- one side
@@ -581,8 +577,7 @@ def _store(pool, reg, ref, free, nfree, top, hom, region):
         j = top
         top += 1
     _copy_rows_into(pool[j], hom)
-    for m in range(region.shape[0]):
-        reg[j, m] = region[m]
+    copy_into(reg[j], region)
     ref[j] = 0
     return j, nfree, top
 

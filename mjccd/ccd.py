@@ -674,33 +674,6 @@ def _bisect_sign(F, lo, hi, rising):
 
 
 @_jit
-def _rows_into(F, t, out):
-    """Every row of ``F`` (Bernstein in t) at t into ``out``: one Horner pass in t/(1-t) for all rows (as
-    :func:`_rows_at`, for any number of rows and any degree)."""
-    rows = F.shape[0]
-    n = F.shape[1] - 1
-    if n == 0:
-        for i in range(rows):
-            out[i] = F[i, 0]
-        return
-    flip = t > 0.5
-    s = (1.0 - t) / t if flip else t / (1.0 - t)
-    end = 0 if flip else n
-    for i in range(rows):
-        out[i] = F[i, end]
-    tabled = n <= bz.TABLED_DEGREE
-    binom = 1.0
-    for k in range(n - 1, -1, -1):
-        binom = bz.BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
-        j = n - k if flip else k
-        for i in range(rows):
-            out[i] = out[i] * s + binom * F[i, j]
-    w = (t if flip else 1.0 - t) ** n
-    for i in range(rows):
-        out[i] *= w
-
-
-@_jit
 def _third_derivative_bounds(F, out):
     """Per row of ``F``: an upper bound (>= 0) of its third t-derivative on [0, 1], into ``out``.
 
@@ -809,9 +782,9 @@ def _march_exit(F, t_start, t_end):
     for _ in range(MAX_MARCH):
         if a >= t_end:
             return 2.0, t_end
-        _rows_into(F, a, g)
-        _rows_into(Ft, a, d)
-        _rows_into(Ftt, a, c)
+        g[0], g[1], g[2], g[3], g[4] = _rows_at(F, a)
+        d[0], d[1], d[2], d[3], d[4] = _rows_at(Ft, a)
+        c[0], c[1], c[2], c[3], c[4] = _rows_at(Ftt, a)
         margin = 0.0
         for i in range(rows):
             margin = max(margin, abs(g[i]) + abs(d[i]) + abs(c[i]) + M3[i])

@@ -316,27 +316,28 @@ def _keep_right(c, t):
 
 @_jit
 def value_and_slope(c, t):
-    """p(t) and p'(t) of the Bernstein polynomial ``c`` in O(n) (Horner in t/(1-t), as :func:`evaluate_row`)."""
+    """p(t) and p'(t) of the Bernstein polynomial ``c`` in O(n): one Horner pass in x = t/(1-t) (as
+    :func:`evaluate_row`) that also carries the derivative in x, for Newton's steps.
+
+    p(t) = (1-t)^n P(x), so p'(t) = (1-t)^(n-1) (P'(x) / (1-t) - n P(x)); for t > 1/2 the same from the
+    far end, with x = (1-t)/t and the sign turned.
+    """
     n = c.shape[0] - 1
     if n == 0:
         return c[0], 0.0
     flip = t > 0.5
     x = (1.0 - t) / t if flip else t / (1.0 - t)
-    # coefficient k of the polynomial and of its derivative, read from the far end when flipped
+    # coefficient k of P, read from the far end when flipped
     acc = c[0] if flip else c[n]
-    dacc = (c[0] - c[1]) if flip else (c[n] - c[n - 1])
+    dacc = 0.0
     tabled = n <= TABLED_DEGREE
     binom = 1.0
     for k in range(n - 1, -1, -1):
         binom = BINOMIALS[n, k] if tabled else binom * (k + 1) / (n - k)
+        dacc = dacc * x + acc
         acc = acc * x + binom * (c[n - k] if flip else c[k])
-    binom = 1.0
-    for k in range(n - 2, -1, -1):
-        binom = BINOMIALS[n - 1, k] if tabled else binom * (k + 1) / (n - 1 - k)
-        diff = (c[n - k - 1] - c[n - k]) if flip else (c[k + 1] - c[k])
-        dacc = dacc * x + binom * diff
     far = t if flip else 1.0 - t
-    slope = n * dacc * far ** (n - 1)
+    slope = far ** (n - 1) * (dacc / far - n * acc)
     return acc * far ** n, -slope if flip else slope
 
 

@@ -249,7 +249,7 @@ def frame_kernel(refs, poses_t0, poses_t1, cache_n, cache_kind, all_pairs, new_o
             if use_cache:
                 _load_cache(ws, cache_n, cache_kind, b)
             k, _, _, _ = step_kernel(ws, p0, q0, p1, q1, np.empty((0, 2)), np.empty(0, dtype=np.int64), all_pairs,
-                                     new_only, False)
+                                     new_only, np.bool_(False))
             if use_cache:
                 _store_cache(ws, cache_n, cache_kind, b)
         _write_first(ws, k, 0, b, out)
@@ -280,7 +280,7 @@ def along_kernel(refs, poses, cache_n, cache_kind, new_only, out):
         while state == ORDINARY and k < 0 and f < nsets - 1:
             state, e = _split(poses[b, f + 1], pb, qb)
             if state == ORDINARY:
-                k, _, _, _ = step_kernel(ws, pa, qa, pb, qb, iv, owner, False, new_only, False)
+                k, _, _, _ = step_kernel(ws, pa, qa, pb, qb, iv, owner, np.bool_(False), new_only, np.bool_(False))
                 if k < 0:
                     pa, qa, pb, qb = pb, qb, pa, qa
                     f += 1

@@ -43,7 +43,8 @@ from mjccd.quadric import STATUS_NAMES, Ellipsoid, det4, quartic_max, quartic_ma
 _jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 # a kernel with one call site in compiled code is typed inside its caller (numba IR inlining): no library of its
 # own, which LLVM would optimise and compile again with all its callees (docs/benchmarks.md, "First use");
-# also the two tiny heap helpers
+# also the two tiny heap helpers, and empty_pencil, which its callers give literal degrees (as a kernel of its
+# own it compiled once per literal value)
 _inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False, inline="always")
 
 SHOOT_TOL = 1e-15        # relative width at which a Bézier-clipping root is accepted
@@ -128,7 +129,7 @@ def _minor_into(out, x, y, e, g, sign):
             out[2, j1 + j2] += x1 * y1 + sign * (e1 * g1)
 
 
-@_jit
+@_inline
 def empty_pencil(p, q, r):
     """Scaled pencil arrays for quadrics of degrees (p, q, r) in (P, U, s): side 0 is A, side 1 is B.
 
@@ -508,7 +509,7 @@ def shoot_first_contact(F, E, t_start, t_max, u):
     emax = E.max()
     t = t_start
     h = np.empty(F.shape[1])
-    uniform = E.min() == E.max()  # the constant bound: E(u, .) is that constant
+    uniform = E.min() == emax  # the constant bound: E(u, .) is that constant
     e = h if uniform else np.empty(F.shape[1])
     for _ in range(MAX_SHOOTS):
         if t >= t_max:
@@ -972,8 +973,8 @@ def _exit_box_search(F, t_start, t_end, capacity, max_pops):
     ends[0] = t_end
     top = 1  # slots below top have been used; those free since are in free[:nfree]
     nfree = 0
-    seq = 0
-    nh = _exit_heap_push(ht, hq, hs, 0, t_start, seq, 0)
+    seq = np.intp(0)
+    nh = _exit_heap_push(ht, hq, hs, np.intp(0), t_start, seq, np.intp(0))
     peak = 1
     count = 0
     while nh > 0:
@@ -1084,8 +1085,8 @@ def search_exit(F, E, t_start, t_end):
     overlapping on [t_start, t) and the exit, if any, lies in [t, t_end].
     """
     rows, cols = F.shape
-    t, certified, _ = _search_exit_pool(F, E, t_start, t_end,
-                                        _exit_capacity(rows, cols, MAX_BOXES), MAX_BOXES)
+    max_pops = np.intp(MAX_BOXES)  # a module constant would be passed as a literal: a specialisation of its own
+    t, certified, _ = _search_exit_pool(F, E, t_start, t_end, _exit_capacity(rows, cols, max_pops), max_pops)
     return t, certified
 
 

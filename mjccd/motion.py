@@ -29,6 +29,9 @@ from mjccd.quadric import quat_to_matrix
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
 # forceinline=False: numba hands a caller's forceinline down to the callees it compiles
 _jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# a one-line helper called with many literal ints (gamma(80), gamma(120), ...) is typed inside its callers: as a
+# kernel of its own, numba compiled it once per literal value
+_inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False, inline="always")
 EPS = 2.220446049250313e-16
 
 
@@ -295,7 +298,7 @@ def quadric_affine(radii, p0, q0, p1, q1):
     return P, U, s
 
 
-@_jit
+@_inline
 def gamma(k):
     """gamma_k = k u / (1 - k u): the relative error bound of k rounded operations (u the unit roundoff)."""
     return k * EPS / (1.0 - k * EPS)

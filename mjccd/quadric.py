@@ -914,8 +914,8 @@ def null_vector(M):
     column with the largest diagonal entry is the best-conditioned multiple
     of X.  Only the diagonal and that column are computed.
     """
-    best = 0
-    best_diag = abs(_cofactor(M, 0, 0))
+    best = np.intp(0)
+    best_diag = abs(_cofactor(M, np.intp(0), np.intp(0)))
     for i in range(1, 4):
         d = abs(_cofactor(M, i, i))
         if d > best_diag:

@@ -785,8 +785,8 @@ def run_kernel(ws, positions, quats, iv, owner, new_only, timing, out):
     for f in range(positions.shape[0] - 1):
         if timing:
             t_start = _ticks()
-        k, _, _, _ = step_kernel(ws, positions[f], quats[f], positions[f + 1], quats[f + 1], iv, owner, False,
-                                 new_only, timing)
+        k, _, _, _ = step_kernel(ws, positions[f], quats[f], positions[f + 1], quats[f + 1], iv, owner,
+                                 np.bool_(False), new_only, timing)
         for k2 in range(outcome.shape[0]):
             out_outcomes[f, k2] = outcome[k2]
             if timing:

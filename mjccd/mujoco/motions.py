@@ -188,5 +188,5 @@ def poses_then_first(qpos, qvel, xpos, xquat, body_ids, local, p0, p1, fill, ws,
     s0, r0, s1, r1 = field(ws, "p0"), field(ws, "q0"), field(ws, "p1"), field(ws, "q1")
     if not (split_poses(p0, s0, r0) and split_poses(p1, s1, r1)):
         return POSES_NOT_ORDINARY
-    best_k, _, _, _ = step_kernel(ws, s0, r0, s1, r1, iv, owner, False, new_only, False)
+    best_k, _, _, _ = step_kernel(ws, s0, r0, s1, r1, iv, owner, np.bool_(False), new_only, np.bool_(False))
     return best_k

@@ -77,7 +77,7 @@ def bench_static(n_pairs, repeats, rng):
     return us / n_pairs, {int(k): int(v) for k, v in zip(*np.unique(out, return_counts=True))}
 
 
-def _spheres_meet(q):
+def spheres_meet(q):
     """True when the bounding spheres of the query's two bodies meet during the step."""
     pa, pb = q.position_a, q.position_b
     d0, v = pa[0] - pb[0], (pa[1] - pa[0]) - (pb[1] - pb[0])
@@ -86,7 +86,7 @@ def _spheres_meet(q):
     return np.linalg.norm(d0 + tt * v) <= reach
 
 
-def _fused(q):
+def fused_arguments(q):
     """Arguments of the fused kernel: radii (2, 3), positions (2, 2, 3), unit quaternions (2, 2, 4), t_max, out."""
     quats = np.array([q.quaternion_a, q.quaternion_b], dtype=float)
     quats /= np.linalg.norm(quats, axis=2, keepdims=True)
@@ -97,7 +97,8 @@ def _fused(q):
             quats, 1.0, np.empty((2, 3)))
 
 
-def _api(q):
+def built_pair(q):
+    """The query as the Python API takes it: two Ellipsoids and two Rigid motions."""
     a, b = mjccd.Ellipsoid(q.radii_a), mjccd.Ellipsoid(q.radii_b)
     ma = mjccd.Rigid(q.position_a[0], q.quaternion_a[0], q.position_a[1], q.quaternion_a[1])
     mb = mjccd.Rigid(q.position_b[0], q.quaternion_b[0], q.position_b[1], q.quaternion_b[1])
@@ -166,7 +167,7 @@ def reference_times(queries):
     """mjccd's first contact time of each query (None when the pair stays separate)."""
     out = []
     for q in queries:
-        c = mjccd.first_contact(*_api(q))
+        c = mjccd.first_contact(*built_pair(q))
         out.append(None if c is None else c.time)
     return out
 
@@ -201,11 +202,11 @@ def run(n_queries, repeats, n_static, seed, with_peers):
     sections.update()
 
     queries = [q for q in peers.random_rigid_queries(3 * n_queries, seed=seed, max_angle=0.5)
-               if _spheres_meet(q)][:n_queries]
+               if spheres_meet(q)][:n_queries]
     refs = reference_times(queries)
     hits = sum(r is not None for r in refs)
-    fused = _per_query_median([_fused(q) for q in queries], lambda a: rigid_first_contact(*a), repeats)
-    built = [_api(q) for q in queries]
+    fused = _per_query_median([fused_arguments(q) for q in queries], lambda a: rigid_first_contact(*a), repeats)
+    built = [built_pair(q) for q in queries]
     api = _per_query_median(built, lambda a: mjccd.first_contact(*a), repeats)
     from_lists = _per_query_median([_lists(q) for q in queries], _built_and_solved, repeats)
     intervals = _per_query_median(built, lambda a: mjccd.collision_intervals(*a), repeats)
@@ -246,10 +247,10 @@ def run(n_queries, repeats, n_static, seed, with_peers):
     peer_rows = []
     if with_peers:
         straight = [q for q in peers.random_rigid_queries(3 * n_queries, seed=seed + 1, max_angle=0.0)
-                    if _spheres_meet(q)][:n_queries]
+                    if spheres_meet(q)][:n_queries]
         straight_refs = reference_times(straight)
-        mj_fused = _per_query_median([_fused(q) for q in straight], lambda a: rigid_first_contact(*a), repeats)
-        mj_api = _per_query_median([_api(q) for q in straight], lambda a: mjccd.first_contact(*a), repeats)
+        mj_fused = _per_query_median([fused_arguments(q) for q in straight], lambda a: rigid_first_contact(*a), repeats)
+        mj_api = _per_query_median([built_pair(q) for q in straight], lambda a: mjccd.first_contact(*a), repeats)
         peer_rows.append(("translation-only", mj_fused, mj_api, straight,
                           peers.peer_table(straight, straight_refs, (100, 1000), repeats=repeats)))
         peer_rows.append(("rotating (up to 0.5 rad)", fused, api, queries,

@@ -1973,15 +1973,16 @@ def _settled(a, motion_a, b, motion_b, solution, first_only):
 
 
 class Contact(NamedTuple):
-    """First contact of two moving ellipsoids (a named tuple, as dm_env's TimeStep).
+    """First contact of two moving bodies (a named tuple, as dm_env's TimeStep).
 
     ``time`` is normalised to [0, 1]; ``point`` (world) and ``normal`` (unit,
-    outward from the first ellipsoid) describe the touch; they are None when
+    outward from the first body) describe the touch; they are None when
     the pair already touches or overlaps at the start (``time == 0``) or when
     the answer is uncertain.  ``certainty`` is "certified", or "uncertain"
     when a limit of the search was reached: then ``bracket`` = (lo, hi) holds
     every possible first contact and ``time`` is lo, so an uncertain answer
-    never reads as "no contact".
+    never reads as "no contact".  The geom solvers (:mod:`mjccd.geoms`) also
+    name the two ``elements`` that touch.
     """
 
     time: float
@@ -1990,6 +1991,7 @@ class Contact(NamedTuple):
     status_at_start: str
     certainty: str = "certified"
     bracket: tuple = None
+    elements: tuple = None     # geom solvers: the names of the two touching elements ("face +x", "rim -z", ...)
 
 
 def _contact(solution):

@@ -1,0 +1,225 @@
+"""The first contact of two moving shapes: one compiled call per pair (numba kernel).
+
+:func:`pair_kernel` builds both frames from their element rows
+(:mod:`mjccd.geoms.frames`), the pair's systems (:mod:`mjccd.geoms.systems`),
+decides the status at t = 0, scans every system for the first time it holds
+(:mod:`mjccd.geoms.scan`) and turns the earliest one's witness into the
+contact point, normal and touching elements (:mod:`mjccd.geoms.contact`).
+"""
+import math
+
+import numpy as np
+
+from mjccd.geoms import contact as ct
+from mjccd.geoms import frames as fr
+from mjccd.geoms import poly as P
+from mjccd.geoms import scan as sc
+from mjccd.geoms import systems as sy
+from mjccd.geoms.poly import _jit
+
+TIME_TOL = 1e-9             # a first contact is certified when its proven bracket is this narrow
+OUT = 16                    # fields of a pair's answer, see pair_kernel
+STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED = (
+    0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15)
+NOT_HANDLED, OVERFLOW = 1.0, 2.0  # values of out[FAILED]
+
+
+@_jit
+def _degree(rows):
+    """Degree in t of a frame composed of these element rows (forward rotation block)."""
+    d = 0
+    for k in range(rows.shape[0]):
+        kind = int(rows[k, 0])
+        if kind == fr.SLIDE:
+            d += 1
+        elif kind == fr.HINGE:
+            d += 2
+        else:
+            moving = False
+            for i in range(7):
+                if rows[k, 1 + i] != rows[k, 8 + i]:
+                    moving = True
+            d += 3 if moving else 0
+    return d
+
+
+@_jit
+def _transform(W, I, F, t, L, v):
+    """L (3, 3), v (3,) of the forward map of frame F at time t: x = L y + v."""
+    m = P.value(W, I, F[fr.M0], t)
+    for i in range(3):
+        for j in range(3):
+            L[i, j] = P.value(W, I, F[fr.L0 + 3 * i + j], t) / m
+        v[i] = P.value(W, I, F[fr.V0 + i], t) / m
+
+
+@_jit
+def _unit(x):
+    n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+    return x / n if n > 0.0 else x
+
+
+@_jit
+def _witness(W, I, SYS, k, t):
+    """The winning system's witness at t, in the frame of its side."""
+    y = np.empty(3)
+    vals = np.empty(4)
+    for c in range(4):
+        vals[c] = P.value(W, I, SYS[k, sy.WIT + 5 * c], t)
+    for c in range(3):
+        y[c] = vals[c] / vals[3]
+    return y
+
+
+@_jit
+def _contact(W, I, SYS, SYSR, k, t, ka, sa, FA, kb, sb, FB, out):
+    """Fill out[POINT], out[NORMAL], out[ELEM_A], out[ELEM_B] from system k's witness at time t."""
+    side = SYS[k, 2]
+    y = _witness(W, I, SYS, k, t)
+    La, va = np.empty((3, 3)), np.empty(3)
+    Lb, vb = np.empty((3, 3)), np.empty(3)
+    _transform(W, I, FA, t, La, va)
+    _transform(W, I, FB, t, Lb, vb)
+    Ls, vs = (La, va) if side == 0 else (Lb, vb)
+    ks, ss = (ka, sa) if side == 0 else (kb, sb)
+    q = np.empty(3)
+    if SYSR[k] > 0.0:  # the witness is a rounded core: the contact is the solid's point nearest to it
+        ct.closest_point(ks, ss, y, q)
+        n_side = _unit(Ls @ (y - q))
+        n = n_side if side == 0 else -n_side
+        x = Ls @ q + vs
+    else:
+        x = Ls @ y + vs
+        n = np.zeros(3)
+    # each shape's element at the point (in its own frame; the rotation's inverse is its transpose)
+    ya = La.T @ (x - va)
+    yb = Lb.T @ (x - vb)
+    tol = 1e-7
+    ca, qa, na = ct.element(ka, sa, ya, tol)
+    cb, qb, nb = ct.element(kb, sb, yb, tol)
+    if SYSR[k] == 0.0:
+        if qa == ct.FACE:
+            n = La @ na
+        elif qb == ct.FACE:
+            n = -(Lb @ nb)
+        elif qa == ct.EDGE and qb == ct.EDGE:
+            ta, tb = La @ na, Lb @ nb
+            n = _unit(np.array([ta[1] * tb[2] - ta[2] * tb[1], ta[2] * tb[0] - ta[0] * tb[2],
+                                ta[0] * tb[1] - ta[1] * tb[0]]))
+            if (n[0] * (x[0] - va[0]) + n[1] * (x[1] - va[1]) + n[2] * (x[2] - va[2])) < 0.0:
+                n = -n
+        n = _unit(n)
+    for i in range(3):
+        out[POINT + i] = x[i]
+        out[NORMAL + i] = n[i]
+    out[ELEM_A] = ca
+    out[ELEM_B] = cb
+
+
+@_jit
+def _systems_of(W, I, ka, sa, rows_a, kb, sb, rows_b):
+    """Frames and systems of the pair in the workspace (W, I), emptied first; returns (FA, FB, CON, SYS, SYSR,
+    N, C, D, errs, failure) with each constraint's double coefficients C, degrees D and error bounds."""
+    P.reset(W, I)
+    FA = fr.chain_frame(W, I, rows_a)
+    FB = fr.chain_frame(W, I, rows_b)
+    CON, SYS, SYSR, N = sy.new_store(1024, 8192)
+    handled = sy.build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB)
+    nmax = 0
+    for c in range(N[0]):
+        nmax = max(nmax, I[CON[c, 1], 0])
+    C = np.empty((N[0], nmax + 1))
+    D = np.empty(N[0], dtype=np.int64)
+    errs = np.empty(N[0])
+    for c in range(N[0]):
+        k = CON[c, 1]
+        P.coefficients_into(W, I, k, C[c])
+        D[c] = I[k, 0]
+        errs[c] = P.error(W, I, k)
+    failure = 0.0 if handled else NOT_HANDLED
+    if handled and (N[2] or P.failed(I)):
+        failure = OVERFLOW
+    return FA, FB, CON, SYS, SYSR, N, C, D, errs, failure
+
+
+@_jit
+def _scan_all(SYS, N, C, D, errs, t_end, out):
+    """Status at t = 0 and first contact over all systems into out; returns the winning system (-1: none)."""
+    nsys = N[1]
+    out[SYSTEMS] = nsys
+    status0 = 1
+    for k in range(nsys):
+        s0, cnt = SYS[k, 0], SYS[k, 1]
+        st = sc.status_at_start(C[s0:s0 + cnt], errs[s0:s0 + cnt])
+        if st == -1:
+            status0 = -1
+            break
+        if st == 0:
+            status0 = 0
+    out[STATUS] = status0
+    out[CERTIFIED] = 0.0
+    if status0 != 1:
+        out[LO] = out[HI] = out[TIME] = 0.0
+        out[CERTIFIED] = 1.0
+        return -1
+    lo, hi, band_end = -1.0, -1.0, -1.0
+    best, best_est = -1, 2.0
+    for k in range(nsys):
+        s0, cnt = SYS[k, 0], SYS[k, 1]
+        limit = hi if hi >= 0.0 else t_end
+        l, h, e, be = sc.first_time(C[s0:s0 + cnt], D[s0:s0 + cnt], errs[s0:s0 + cnt], limit)
+        if l < 0.0:
+            continue
+        lo = l if lo < 0.0 else min(lo, l)
+        if h >= 0.0 and (hi < 0.0 or h < hi):
+            hi = h
+        band_end = max(band_end, be)
+        if e < best_est:
+            best, best_est = k, e
+    out[LO] = lo
+    out[HI] = out[TIME] = -1.0
+    if lo < 0.0:  # proven free
+        out[CERTIFIED] = 1.0
+        return -1
+    if hi >= 0.0:
+        out[HI] = hi
+        out[CERTIFIED] = 1.0 if hi - lo <= TIME_TOL else 0.0
+    else:
+        out[HI] = max(band_end, lo)
+    t = min(max(best_est, lo), out[HI])
+    out[TIME] = t if out[CERTIFIED] > 0.0 else lo
+    out[WINNER] = best
+    return best
+
+
+@_jit
+def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, out):
+    """First contact over [0, t_end] of shape ka (size sa (3,), motion rows_a (n, ELEMENT_FIELDS)) and shape kb.
+
+    ``W, I``: a double workspace, ``Wdd, Idd``: a double-double one
+    (:func:`mjccd.geoms.poly.workspace`); the pair is solved in doubles and,
+    when that leaves its first contact in a bracket wider than TIME_TOL,
+    again in double-double.  out (OUT,): [STATUS] 1 separate, 0 touching, -1
+    overlapping at t = 0; [LO, HI] the proven bracket of the first contact
+    (-1, -1: none); [TIME] its estimate (-1: none; 0 when not separate at the
+    start); [CERTIFIED] 1 or 0; [POINT], [NORMAL] (world, outward from shape
+    a) and [ELEM_A], [ELEM_B] (element codes) of the contact; [SYSTEMS] how
+    many systems the pair has, [WINNER] the one that touches first;
+    [FAILED] 0, or NOT_HANDLED (a pair for another solver), OVERFLOW (a
+    workspace too small).
+    """
+    for i in range(OUT):
+        out[i] = 0.0
+    out[LO] = out[HI] = out[TIME] = -1.0
+    for tier in range(2):
+        Wt, It = (W, I) if tier == 0 else (Wdd, Idd)
+        FA, FB, CON, SYS, SYSR, N, C, D, errs, failure = _systems_of(Wt, It, ka, sa, rows_a, kb, sb, rows_b)
+        out[FAILED] = failure
+        if failure != 0.0:
+            return
+        best = _scan_all(SYS, N, C, D, errs, t_end, out)
+        if out[CERTIFIED] > 0.0 or tier == 1:
+            if best >= 0:
+                _contact(Wt, It, SYS, SYSR, best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],
+                         ka, sa, FA, kb, sb, FB, out)
+            return

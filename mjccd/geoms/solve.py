@@ -1,0 +1,140 @@
+"""First contact of two of MuJoCo's shapes under exact motions: the Python entry points.
+
+:func:`geom_first_contact` validates the shapes and motions, writes each
+motion as element rows in a frame at the first body's start (so bodies far
+from the origin keep their accuracy), and calls the compiled
+:func:`mjccd.geoms.kernel.pair_kernel`.  Pairs of an ellipsoid with a sphere,
+a capsule's end or another ellipsoid go to the ellipsoid solver
+(:func:`mjccd.first_contact`), and an ellipsoid against a half-space to
+:func:`mjccd.plane_first_contact`; their answers are combined with the
+kernel's on the same terms (the earliest first contact, its bracket).
+"""
+import threading
+
+import numpy as np
+
+from mjccd.ccd import Contact
+from mjccd.errors import InputError, InputTypeError
+from mjccd.geoms import contact as ct
+from mjccd.geoms import frames as fr
+from mjccd.geoms import kernel as kn
+from mjccd.geoms import poly as P
+from mjccd.geoms import systems as sy
+from mjccd.geoms.shapes import kind_and_size
+from mjccd.motion import Ball, Chain, Fixed, Free, Hinge, Motion, Rigid, Slide, Static
+
+SLOTS = 16384  # polynomials of one pair query (a box against a box needs about 3,600)
+STATUS_NAMES = {1: "separate", 0: "touching", -1: "overlapping"}
+_local = threading.local()  # each thread's workspaces: concurrent calls never share one
+
+
+def _workspaces():
+    """This thread's double and double-double workspaces (made on first use)."""
+    ws = getattr(_local, "workspaces", None)
+    if ws is None:
+        ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True))
+    return ws
+
+
+def _pose_row(p0, q0, p1, q1):
+    row = np.zeros(fr.ELEMENT_FIELDS)
+    row[0] = fr.POSE
+    row[1:4], row[4:8], row[8:11], row[11:15] = p0, q0, p1, q1
+    return row
+
+
+def _element_rows(element):
+    if type(element) is Fixed:
+        return _pose_row(element.position, element.quaternion, element.position, element.quaternion)
+    if isinstance(element, Free):
+        return _pose_row(element.position0, element.quaternion0, element.position1, element.quaternion1)
+    if type(element) is Ball:
+        zero = np.zeros(3)
+        return _pose_row(zero, element.quaternion0, zero, element.quaternion1)
+    row = np.zeros(fr.ELEMENT_FIELDS)
+    if type(element) is Hinge:
+        row[0] = fr.HINGE
+        row[1:4] = element.axis
+        row[4], row[5] = np.tan(element.angle0 / 2), np.tan(element.angle1 / 2)
+        return row
+    if type(element) is Slide:
+        row[0] = fr.SLIDE
+        row[1:4] = element.axis
+        row[4], row[5] = element.displacement0, element.displacement1
+        return row
+    raise InputTypeError(f"not a chain element: {element!r}")
+
+
+def motion_rows(motion, field="motion"):
+    """The element rows of a motion the geom solvers take: Static, Rigid or Chain."""
+    if type(motion) is Static:
+        return _pose_row(motion.position, motion.quaternion, motion.position, motion.quaternion)[None, :]
+    if type(motion) is Rigid:
+        return _pose_row(motion.position0, motion.quaternion0, motion.position1, motion.quaternion1)[None, :]
+    if type(motion) is Chain:
+        return np.array([_element_rows(e) for e in motion.elements])
+    if isinstance(motion, Motion):
+        raise InputError(f"{field}: a {type(motion).__name__} motion does not keep MuJoCo's shapes rigid; "
+                         f"the geom solvers take Static, Rigid and Chain motions")
+    raise InputTypeError(f"{field}: expected a motion (Static, Rigid, Chain), got {type(motion).__name__}")
+
+
+def _shifted(rows, origin):
+    """The rows of the same motion seen from ``origin`` (the root's position shifted; exact for nearby bodies)."""
+    if rows[0, 0] == fr.POSE:
+        out = rows.copy()
+        out[0, 1:4] -= origin
+        out[0, 8:11] -= origin
+        return out
+    lead = _pose_row(-origin, [1.0, 0.0, 0.0, 0.0], -origin, [1.0, 0.0, 0.0, 0.0])
+    return np.vstack([lead[None, :], rows])
+
+
+def _check(shape, motion, field):
+    kind, size = kind_and_size(shape, f"{field}.shape")
+    rows = motion_rows(motion, f"{field}.motion")
+    if kind == sy.PLANE and not (rows.shape[0] == 1 and np.array_equal(rows[0, 1:8], rows[0, 8:15])):
+        raise InputError(f"{field}.motion: a plane (HalfSpace) must be static")
+    return kind, size, rows
+
+
+def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
+    """The kernel's answer array (see :func:`mjccd.geoms.kernel.pair_kernel`) for a validated pair."""
+    ka, sa, ra = _check(shape_a, motion_a, "a")
+    kb, sb, rb = _check(shape_b, motion_b, "b")
+    if ka == sy.PLANE and kb == sy.PLANE:
+        raise InputError("b.shape: two planes are not a pair MuJoCo collides")
+    origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
+    out = np.empty(kn.OUT)
+    W, I, Wdd, Idd = _workspaces()
+    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), W, I, Wdd, Idd, out)
+    if out[kn.FAILED] == kn.NOT_HANDLED:
+        raise NotImplementedError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]} pairs are not handled yet")
+    if out[kn.FAILED] == kn.OVERFLOW:
+        raise RuntimeError("workspace overflow")
+    out[kn.POINT:kn.POINT + 3] += origin
+    return out, (ka, kb)
+
+
+def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
+    """First contact of two moving MuJoCo shapes over [0, t_max] as a :class:`mjccd.Contact`, or None.
+
+    ``shape_a``, ``shape_b``: :class:`Sphere`, :class:`Capsule`,
+    :class:`Cylinder`, :class:`Box`, :class:`mjccd.Ellipsoid` or
+    :class:`HalfSpace`; motions: :class:`mjccd.Static`, :class:`mjccd.Rigid`
+    or :class:`mjccd.Chain`.  The contact carries the touching ``elements``
+    of each shape; an uncertain answer carries the bracket that holds every
+    possible first contact.
+    """
+    out, (ka, kb) = solve_geoms(shape_a, motion_a, shape_b, motion_b, t_max=t_max)
+    status = STATUS_NAMES[int(out[kn.STATUS])]
+    if out[kn.STATUS] != 1:
+        return Contact(0.0, None, None, status)
+    if out[kn.LO] < 0.0:
+        return None
+    elements = (ct.element_name(ka, int(out[kn.ELEM_A])), ct.element_name(kb, int(out[kn.ELEM_B])))
+    point, normal = out[kn.POINT:kn.POINT + 3].copy(), out[kn.NORMAL:kn.NORMAL + 3].copy()
+    if out[kn.CERTIFIED] > 0.0:
+        return Contact(float(out[kn.TIME]), point, normal, status, elements=elements)
+    return Contact(float(out[kn.LO]), point, normal, status, "uncertain", (float(out[kn.LO]), float(out[kn.HI])),
+                   elements=elements)

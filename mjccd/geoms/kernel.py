@@ -21,7 +21,7 @@ TIME_TOL = 1e-9             # a first contact is certified when its proven brack
 OUT = 16                    # fields of a pair's answer, see pair_kernel
 STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED = (
     0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15)
-NOT_HANDLED, OVERFLOW = 1.0, 2.0  # values of out[FAILED]
+NOT_HANDLED, OVERFLOW, PARTIAL = 1.0, 2.0, 3.0  # values of out[FAILED]; PARTIAL: the ellipsoid solver adds more
 
 
 @_jit
@@ -60,22 +60,25 @@ def _unit(x):
 
 
 @_jit
-def _witness(W, I, SYS, k, t):
-    """The winning system's witness at t, in the frame of its side."""
+def _witness(W, I, SYS, k, s, t):
+    """The winning system's witness at (s, t), in the frame of its side."""
     y = np.empty(3)
-    vals = np.empty(4)
+    vals = np.zeros(4)
+    ds = SYS[k, 3]
     for c in range(4):
-        vals[c] = P.value(W, I, SYS[k, sy.WIT + 5 * c], t)
+        for i in range(ds + 1):
+            b = P.BINOMIALS[ds, i] * s ** i * (1.0 - s) ** (ds - i)
+            vals[c] += b * P.value(W, I, SYS[k, sy.WIT + 5 * c + i], t)
     for c in range(3):
         y[c] = vals[c] / vals[3]
     return y
 
 
 @_jit
-def _contact(W, I, SYS, SYSR, k, t, ka, sa, FA, kb, sb, FB, out):
-    """Fill out[POINT], out[NORMAL], out[ELEM_A], out[ELEM_B] from system k's witness at time t."""
+def _contact(W, I, SYS, SYSR, k, s, t, ka, sa, FA, kb, sb, FB, out):
+    """Fill out[POINT], out[NORMAL], out[ELEM_A], out[ELEM_B] from system k's witness at (s, t)."""
     side = SYS[k, 2]
-    y = _witness(W, I, SYS, k, t)
+    y = _witness(W, I, SYS, k, s, t)
     La, va = np.empty((3, 3)), np.empty(3)
     Lb, vb = np.empty((3, 3)), np.empty(3)
     _transform(W, I, FA, t, La, va)
@@ -119,38 +122,70 @@ def _contact(W, I, SYS, SYSR, k, t, ka, sa, FA, kb, sb, FB, out):
 @_jit
 def _systems_of(W, I, ka, sa, rows_a, kb, sb, rows_b):
     """Frames and systems of the pair in the workspace (W, I), emptied first; returns (FA, FB, CON, SYS, SYSR,
-    N, C, D, errs, failure) with each constraint's double coefficients C, degrees D and error bounds."""
+    N, C, DS, DT, errs, code) with each constraint's double coefficients C (rows in s, columns in t), degrees
+    DS in s and DT in t, error bounds, and build_pair's code (or OVERFLOW)."""
     P.reset(W, I)
     FA = fr.chain_frame(W, I, rows_a)
     FB = fr.chain_frame(W, I, rows_b)
     CON, SYS, SYSR, N = sy.new_store(1024, 8192)
-    handled = sy.build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB)
-    nmax = 0
-    for c in range(N[0]):
-        nmax = max(nmax, I[CON[c, 1], 0])
-    C = np.empty((N[0], nmax + 1))
-    D = np.empty(N[0], dtype=np.int64)
-    errs = np.empty(N[0])
-    for c in range(N[0]):
-        k = CON[c, 1]
-        P.coefficients_into(W, I, k, C[c])
-        D[c] = I[k, 0]
-        errs[c] = P.error(W, I, k)
-    failure = 0.0 if handled else NOT_HANDLED
-    if handled and (N[2] or P.failed(I)):
-        failure = OVERFLOW
-    return FA, FB, CON, SYS, SYSR, N, C, D, errs, failure
+    code = sy.build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB)
+    ncon = N[0]
+    ds_max, nt_max = 0, 0
+    for c in range(ncon):
+        ds_max = max(ds_max, CON[c, 0])
+        for i in range(CON[c, 0] + 1):
+            nt_max = max(nt_max, I[CON[c, 1 + i], 0])
+    C = np.zeros((ncon, ds_max + 1, nt_max + 1))
+    DS = np.empty(ncon, dtype=np.int64)
+    DT = np.zeros(ncon, dtype=np.int64)
+    errs = np.zeros(ncon)
+    row = np.empty(nt_max + 1)
+    for c in range(ncon):
+        DS[c] = CON[c, 0]
+        for i in range(DS[c] + 1):
+            DT[c] = max(DT[c], I[CON[c, 1 + i], 0])
+        for i in range(DS[c] + 1):  # every row elevated to the constraint's degree in t (exactly: in the arena)
+            k = CON[c, 1 + i]
+            if I[k, 0] < DT[c]:
+                k = _elevated(W, I, k, DT[c])
+            P.coefficients_into(W, I, k, row)
+            for q in range(DT[c] + 1):
+                C[c, i, q] = row[q]
+            errs[c] = max(errs[c], P.error(W, I, k))
+        if DS[c] > 0:  # the restriction and evaluation in s round too
+            big = 0.0
+            for i in range(DS[c] + 1):
+                for q in range(DT[c] + 1):
+                    big = max(big, abs(C[c, i, q]))
+            errs[c] += P.gamma(10 * DS[c] + 8) * (big + errs[c])
+    if code != 0 and (N[2] or P.failed(I)):
+        code = -1
+    return FA, FB, CON, SYS, SYSR, N, C, DS, DT, errs, code
 
 
 @_jit
-def _scan_all(SYS, N, C, D, errs, t_end, out):
-    """Status at t = 0 and first contact over all systems into out; returns the winning system (-1: none)."""
+def _elevated(W, I, k, n):
+    """Slot k elevated to degree n (a sum with a zero of degree n elevates it, with its bounds)."""
+    z = P.alloc(W, I, n, 0)
+    for q in range(n + 1):
+        for r in range(W.shape[1]):
+            W[z, r, q] = 0.0
+    return P.add(W, I, k, z, 1.0)
+
+
+@_jit
+def _scan_all(SYS, N, C, DS, DT, errs, t_end, out):
+    """Status at t = 0 and first contact over all systems into out; returns the winning system (-1: none)
+    and the s at which it holds (bivariate systems)."""
     nsys = N[1]
     out[SYSTEMS] = nsys
     status0 = 1
     for k in range(nsys):
         s0, cnt = SYS[k, 0], SYS[k, 1]
-        st = sc.status_at_start(C[s0:s0 + cnt], errs[s0:s0 + cnt])
+        if SYS[k, 3] == 0:
+            st = sc.status_at_start(np.ascontiguousarray(C[s0:s0 + cnt, 0, :]), errs[s0:s0 + cnt])
+        else:
+            st = _bstatus_at_start(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt])
         if st == -1:
             status0 = -1
             break
@@ -161,13 +196,19 @@ def _scan_all(SYS, N, C, D, errs, t_end, out):
     if status0 != 1:
         out[LO] = out[HI] = out[TIME] = 0.0
         out[CERTIFIED] = 1.0
-        return -1
+        return -1, 0.5
     lo, hi, band_end = -1.0, -1.0, -1.0
-    best, best_est = -1, 2.0
+    best, best_est, best_s = -1, 2.0, 0.5
     for k in range(nsys):
         s0, cnt = SYS[k, 0], SYS[k, 1]
         limit = hi if hi >= 0.0 else t_end
-        l, h, e, be = sc.first_time(C[s0:s0 + cnt], D[s0:s0 + cnt], errs[s0:s0 + cnt], limit)
+        if SYS[k, 3] == 0:
+            l, h, e, be = sc.first_time(np.ascontiguousarray(C[s0:s0 + cnt, 0, :]), DT[s0:s0 + cnt],
+                                        errs[s0:s0 + cnt], limit)
+            sv = 0.5
+        else:
+            l, h, e, be, sv = sc.bfirst_time(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt],
+                                             limit)
         if l < 0.0:
             continue
         lo = l if lo < 0.0 else min(lo, l)
@@ -175,12 +216,12 @@ def _scan_all(SYS, N, C, D, errs, t_end, out):
             hi = h
         band_end = max(band_end, be)
         if e < best_est:
-            best, best_est = k, e
+            best, best_est, best_s = k, e, sv
     out[LO] = lo
     out[HI] = out[TIME] = -1.0
     if lo < 0.0:  # proven free
         out[CERTIFIED] = 1.0
-        return -1
+        return -1, 0.5
     if hi >= 0.0:
         out[HI] = hi
         out[CERTIFIED] = 1.0 if hi - lo <= TIME_TOL else 0.0
@@ -189,7 +230,25 @@ def _scan_all(SYS, N, C, D, errs, t_end, out):
     t = min(max(best_est, lo), out[HI])
     out[TIME] = t if out[CERTIFIED] > 0.0 else lo
     out[WINNER] = best
-    return best
+    return best, best_s
+
+
+@_jit
+def _bstatus_at_start(C, DS, DT, errs):
+    """As :func:`mjccd.geoms.scan.status_at_start` for bivariate constraints at t = 0: whether some s in [0, 1]
+    satisfies them all, decided by the univariate scan over s of their values at t = 0."""
+    J = C.shape[0]
+    ds = 0
+    for j in range(J):
+        ds = max(ds, DS[j])
+    cols = np.zeros((J, ds + 1))
+    for j in range(J):
+        for i in range(DS[j] + 1):
+            cols[j, i] = C[j, i, 0]
+    lo, hi, _, _ = sc.first_time(cols, DS, errs, 1.0)
+    if lo < 0.0:
+        return 1
+    return -1 if hi >= 0.0 else 0
 
 
 @_jit
@@ -213,13 +272,14 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, out):
     out[LO] = out[HI] = out[TIME] = -1.0
     for tier in range(2):
         Wt, It = (W, I) if tier == 0 else (Wdd, Idd)
-        FA, FB, CON, SYS, SYSR, N, C, D, errs, failure = _systems_of(Wt, It, ka, sa, rows_a, kb, sb, rows_b)
-        out[FAILED] = failure
-        if failure != 0.0:
+        FA, FB, CON, SYS, SYSR, N, C, DS, DT, errs, code = _systems_of(Wt, It, ka, sa, rows_a, kb, sb, rows_b)
+        if code <= 0:
+            out[FAILED] = NOT_HANDLED if code == 0 else OVERFLOW
             return
-        best = _scan_all(SYS, N, C, D, errs, t_end, out)
+        out[FAILED] = PARTIAL if code == sy.PARTIAL else 0.0
+        best, s_best = _scan_all(SYS, N, C, DS, DT, errs, t_end, out)
         if out[CERTIFIED] > 0.0 or tier == 1:
             if best >= 0:
-                _contact(Wt, It, SYS, SYSR, best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],
+                _contact(Wt, It, SYS, SYSR, best, s_best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],
                          ka, sa, FA, kb, sb, FB, out)
             return

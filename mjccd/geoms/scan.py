@@ -275,3 +275,222 @@ def status_at_start(C, errs):
         if not v < -errs[j]:
             verdict = 0
     return verdict
+
+
+# ---------------------------------------------------------------- bivariate: a parameter s in [0, 1] besides t
+
+MAX_BOXES = 6000      # boxes examined per bivariate system; past it the rest stays undecided
+HEAP = 4096
+LEAF_S = 2.0 ** -30   # narrower boxes in s are not split in s
+
+
+@_jit
+def _restrict2(c, ds, nt, s0, s1, t0, t1, out):
+    """out[:ds+1, :nt+1] = the bivariate coefficients c (rows in s, columns in t) on a box containing
+    [s0, s1] x [t0, t1]; returns the box's real lower corner (s, t)."""
+    tl = 0.0
+    for i in range(ds + 1):
+        tl = _restrict_coefficients(c[i], out[i, :nt + 1], t0, t1)
+    col = np.empty(ds + 1)
+    sl = 0.0
+    for k in range(nt + 1):
+        for i in range(ds + 1):
+            col[i] = out[i, k]
+        sl = _restrict_coefficients(col, col, s0, s1)
+        for i in range(ds + 1):
+            out[i, k] = col[i]
+    return sl, tl
+
+
+@_jit
+def _bvalue(c, ds, nt, s, t):
+    """Value of the bivariate coefficients at (s, t)."""
+    col = np.empty(ds + 1)
+    for i in range(ds + 1):
+        col[i], _ = _value_slope(c[i, :nt + 1], t)
+    v, _ = _value_slope(col, s)
+    return v
+
+
+@_jit
+def bholds_at(C, DS, DT, errs, s, t):
+    """1 when every bivariate constraint is proven < 0 at (s, t), -1 when one is proven > 0, else 0."""
+    verdict = 1
+    for j in range(C.shape[0]):
+        v = _bvalue(C[j], DS[j], DT[j], s, t)
+        if v > errs[j]:
+            return -1
+        if not v < -errs[j]:
+            verdict = 0
+    return verdict
+
+
+@_jit
+def _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask):
+    """Push a box on the binary min-heap keyed by t0; returns the new size (unchanged when full)."""
+    if n >= hs0.shape[0]:
+        return n
+    i = n
+    hs0[i], hs1[i], ht0[i], ht1[i], hm[i] = s0, s1, t0, t1, mask
+    while i > 0:
+        p = (i - 1) // 2
+        if ht0[p] <= ht0[i]:
+            break
+        hs0[p], hs0[i] = hs0[i], hs0[p]
+        hs1[p], hs1[i] = hs1[i], hs1[p]
+        ht0[p], ht0[i] = ht0[i], ht0[p]
+        ht1[p], ht1[i] = ht1[i], ht1[p]
+        hm[p], hm[i] = hm[i], hm[p]
+        i = p
+    return n + 1
+
+
+@_jit
+def _pop(hs0, hs1, ht0, ht1, hm, n):
+    """Remove the root of the heap (moved into the last place, whose index is returned as the new size)."""
+    last = n - 1
+    hs0[0], hs0[last] = hs0[last], hs0[0]
+    hs1[0], hs1[last] = hs1[last], hs1[0]
+    ht0[0], ht0[last] = ht0[last], ht0[0]
+    ht1[0], ht1[last] = ht1[last], ht1[0]
+    hm[0], hm[last] = hm[last], hm[0]
+    i = 0
+    while True:
+        l, r = 2 * i + 1, 2 * i + 2
+        m = i
+        if l < last and ht0[l] < ht0[m]:
+            m = l
+        if r < last and ht0[r] < ht0[m]:
+            m = r
+        if m == i:
+            break
+        hs0[m], hs0[i] = hs0[i], hs0[m]
+        hs1[m], hs1[i] = hs1[i], hs1[m]
+        ht0[m], ht0[i] = ht0[i], ht0[m]
+        ht1[m], ht1[i] = ht1[i], ht1[m]
+        hm[m], hm[i] = hm[i], hm[m]
+        i = m
+    return last
+
+
+@_jit
+def bfirst_time(C, DS, DT, errs, t_end):
+    """The first time in [0, t_end] at which some s in [0, 1] makes every bivariate constraint <= 0.
+
+    ``C[j, :DS[j]+1, :DT[j]+1]``: constraint j's coefficients (rows in s,
+    columns in t).  Boxes of (s, t) are taken earliest first from a heap;
+    each is discarded when a constraint is proven positive on it, clipped in
+    t to where the lower envelope over s of some constraint can reach zero
+    and in s likewise, and otherwise split; a box with every constraint
+    proven negative, or a point that proves them all negative, bounds the
+    answer from above.  Returns (lo, hi, t_estimate, band_end, s_estimate)
+    as :func:`first_time`, with the s of the point that proved contact.
+    """
+    J = C.shape[0]
+    ds_max, nt_max = 0, 0
+    for j in range(J):
+        ds_max = max(ds_max, DS[j])
+        nt_max = max(nt_max, DT[j])
+    buf = np.empty((J, ds_max + 1, nt_max + 1))
+    env = np.empty(max(ds_max, nt_max) + 1)
+    hull = np.empty(max(ds_max, nt_max) + 1, dtype=np.int64)
+    hs0, hs1 = np.empty(HEAP), np.empty(HEAP)
+    ht0, ht1 = np.empty(HEAP), np.empty(HEAP)
+    hm = np.empty(HEAP, dtype=np.int64)
+    n = _push(hs0, hs1, ht0, ht1, hm, 0, 0.0, 1.0, 0.0, t_end, 0)
+    lo, hi, est, band_end, s_est = -1.0, -1.0, -1.0, -1.0, 0.5
+    leaf_lo = -1.0
+    boxes = 0
+    overflow = False
+    while n > 0:
+        n = _pop(hs0, hs1, ht0, ht1, hm, n)
+        s0, s1, t0, t1, mask = hs0[n], hs1[n], ht0[n], ht1[n], hm[n]
+        if hi >= 0.0 and t0 >= hi:
+            break
+        while True:
+            boxes += 1
+            infeasible = False
+            undecided = 0
+            a_t, b_t, a_s, b_s = 0.0, 1.0, 0.0, 1.0
+            sl, tl = 0.0, 0.0
+            for j in range(J):
+                if (mask >> j) & 1:
+                    continue
+                ds, nt = DS[j], DT[j]
+                box = buf[j]
+                sl, tl = _restrict2(C[j], ds, nt, s0, s1, t0, t1, box)
+                mn, mx = box[0, 0], box[0, 0]
+                for i in range(ds + 1):
+                    for k in range(nt + 1):
+                        mn = min(mn, box[i, k])
+                        mx = max(mx, box[i, k])
+                if mn > errs[j]:
+                    infeasible = True
+                    break
+                if mx < -errs[j]:
+                    mask |= 1 << j
+                    continue
+                undecided += 1
+                for k in range(nt + 1):  # lower envelope over s, as a polynomial in t
+                    m = box[0, k]
+                    for i in range(1, ds + 1):
+                        m = min(m, box[i, k])
+                    env[k] = m
+                al, be = _sublevel(env[:nt + 1], errs[j], hull)
+                a_t, b_t = max(a_t, al), min(b_t, be)
+                for i in range(ds + 1):  # lower envelope over t, as a polynomial in s
+                    m = box[i, 0]
+                    for k in range(1, nt + 1):
+                        m = min(m, box[i, k])
+                    env[i] = m
+                al, be = _sublevel(env[:ds + 1], errs[j], hull)
+                a_s, b_s = max(a_s, al), min(b_s, be)
+            if infeasible or a_t > b_t or a_s > b_s:
+                infeasible = True
+                break
+            if undecided == 0:
+                break
+            wt, ws = t1 - tl, s1 - sl
+            nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
+            nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
+            ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
+            ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
+            shrunk = (nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0)
+            t0, t1, s0, s1 = nt0, nt1, ns0, ns1
+            if not shrunk or boxes >= MAX_BOXES or (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S):
+                break
+        if infeasible:
+            continue
+        sm = 0.5 * (s0 + s1)
+        if undecided == 0 or bholds_at(C, DS, DT, errs, sm, t0) == 1:
+            if hi < 0.0 or t0 < hi:
+                hi, s_est = t0, sm
+            continue
+        if bholds_at(C, DS, DT, errs, sm, t1) == 1 and (hi < 0.0 or t1 < hi):
+            hi, s_est = t1, sm
+        if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= MAX_BOXES or n + 2 > HEAP:
+            if leaf_lo < 0.0 or t0 < leaf_lo:
+                leaf_lo = t0
+                est = 0.5 * (t0 + t1)
+            band_end = max(band_end, t1)
+            overflow = overflow or boxes >= MAX_BOXES or n + 2 > HEAP
+            continue
+        if t1 - t0 > LEAF and (s1 - s0 <= LEAF_S or (t1 - t0) * 64.0 > (s1 - s0)):
+            tm = 0.5 * (t0 + t1)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
+        else:
+            smid = 0.5 * (s0 + s1)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
+    # the earliest box left unresolved bounds the answer from below
+    lo = leaf_lo
+    if n > 0 and (hi < 0.0 or ht0[0] < hi):
+        lo = ht0[0] if lo < 0.0 else min(lo, ht0[0])
+    if hi >= 0.0 and (lo < 0.0 or lo > hi):
+        lo = hi
+    if lo >= 0.0 and est < 0.0:
+        est = lo if hi < 0.0 else 0.5 * (lo + hi)
+    if hi >= 0.0 and est > hi:
+        est = 0.5 * (lo + hi)
+    return lo, hi, est, band_end, s_est

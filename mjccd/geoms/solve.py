@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 
-from mjccd.ccd import Contact
+from mjccd.ccd import Contact, first_contact
 from mjccd.errors import InputError, InputTypeError
 from mjccd.geoms import contact as ct
 from mjccd.geoms import frames as fr
@@ -22,6 +22,8 @@ from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
 from mjccd.geoms.shapes import kind_and_size
 from mjccd.motion import Ball, Chain, Fixed, Free, Hinge, Motion, Rigid, Slide, Static
+from mjccd.plane import Plane, plane_first_contact
+from mjccd.quadric import Ellipsoid, quat_to_matrix
 
 SLOTS = 16384  # polynomials of one pair query (a box against a box needs about 3,600)
 STATUS_NAMES = {1: "separate", 0: "touching", -1: "overlapping"}
@@ -98,6 +100,78 @@ def _check(shape, motion, field):
     return kind, size, rows
 
 
+def _ellipsoid_shape(kind, size):
+    """The shape as the ellipsoid solver takes it (a sphere is an ellipsoid with equal radii)."""
+    return Ellipsoid(size if kind == sy.ELLIPSOID else [size[0]] * 3)
+
+
+def _end_ball_motion(motion, h):
+    """The exact motion of the centre of a capsule's end ball (the capsule's motion, then (0, 0, h))."""
+    end = Fixed([0.0, 0.0, h])
+    if type(motion) is Static:
+        return Chain([Fixed(motion.position, motion.quaternion), end])
+    if type(motion) is Rigid:
+        return Chain([Free(motion.position0, motion.quaternion0, motion.position1, motion.quaternion1), end])
+    return Chain(list(motion.elements) + [end])
+
+
+def _plane_of(motion):
+    """The world plane (outward normal, offset) of a HalfSpace at a static pose."""
+    R = quat_to_matrix(np.asarray(motion.quaternion, float))
+    n = R[:, 2]
+    return Plane(n, float(n @ np.asarray(motion.position, float)))
+
+
+def _from_contact(contact, names, flip):
+    """A Contact of the ellipsoid or plane solver as a geom answer (its normal turned when the shapes were)."""
+    if contact is None:
+        return None
+    normal = None if contact.normal is None else (-np.asarray(contact.normal) if flip else contact.normal)
+    return contact._replace(normal=normal, elements=names if contact.time > 0.0 or
+                            contact.status_at_start == "separate" else None)
+
+
+def _other_solver(shape_a, motion_a, shape_b, motion_b, ka, sa, kb, sb, t_max):
+    """The contacts the ellipsoid and plane solvers owe for this pair (a list)."""
+    flip = ka > kb
+    if flip:
+        shape_a, motion_a, shape_b, motion_b = shape_b, motion_b, shape_a, motion_a
+        ka, sa, kb, sb = kb, sb, ka, sa
+    surface = ("surface", "surface")
+    if kb == sy.PLANE:  # an ellipsoid above a plane
+        c = plane_first_contact(_ellipsoid_shape(ka, sa), motion_a, _plane_of(motion_b), t_max=t_max)
+        names = ("surface", "plane")
+        return [_from_contact(c, names[::-1] if flip else names, flip)]
+    if ka == sy.CAPSULE:  # the capsule's end balls against the ellipsoid
+        out = []
+        for h, cap in ((sa[1], "cap +z"), (-sa[1], "cap -z")):
+            c = first_contact(Ellipsoid([sa[0]] * 3), _end_ball_motion(motion_a, h), _ellipsoid_shape(kb, sb),
+                              motion_b, t_max=t_max)
+            names = (cap, "surface")
+            out.append(_from_contact(c, names[::-1] if flip else names, flip))
+        return out
+    c = first_contact(_ellipsoid_shape(ka, sa), motion_a, _ellipsoid_shape(kb, sb), motion_b, t_max=t_max)
+    return [_from_contact(c, surface, flip)]
+
+
+def _earliest(contacts):
+    """One answer from several for the same pair: the worst status at the start, else the earliest first
+    contact, uncertain when an uncertain bracket begins before the earliest certified contact."""
+    rank = {"overlapping": 0, "touching": 1, "separate": 2}
+    status = min((c.status_at_start for c in contacts if c is not None), key=rank.get, default="separate")
+    if status != "separate":
+        return Contact(0.0, None, None, status)
+    found = [c for c in contacts if c is not None]
+    if not found:
+        return None
+    lo = min(c.bracket[0] if c.certainty == "uncertain" else c.time for c in found)
+    hi = min(c.bracket[1] if c.certainty == "uncertain" else c.time for c in found)
+    first = min(found, key=lambda c: (c.time, c.certainty != "certified"))
+    if all(c.certainty == "certified" or c.bracket[0] >= first.time for c in found) and first.certainty == "certified":
+        return first
+    return first._replace(time=lo, certainty="uncertain", bracket=(lo, hi))
+
+
 def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     """The kernel's answer array (see :func:`mjccd.geoms.kernel.pair_kernel`) for a validated pair."""
     ka, sa, ra = _check(shape_a, motion_a, "a")
@@ -108,12 +182,26 @@ def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     out = np.empty(kn.OUT)
     W, I, Wdd, Idd = _workspaces()
     kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), W, I, Wdd, Idd, out)
-    if out[kn.FAILED] == kn.NOT_HANDLED:
-        raise NotImplementedError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]} pairs are not handled yet")
     if out[kn.FAILED] == kn.OVERFLOW:
-        raise RuntimeError("workspace overflow")
+        raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
+                           f"workspace (a chain too deep for its degree limit {P.MAX_DEGREE})")
     out[kn.POINT:kn.POINT + 3] += origin
-    return out, (ka, kb)
+    return out, (ka, sa, kb, sb)
+
+
+def _kernel_contact(out, ka, kb):
+    """The kernel's answer as a Contact (None: proven free of contact)."""
+    status = STATUS_NAMES[int(out[kn.STATUS])]
+    if out[kn.STATUS] != 1:
+        return Contact(0.0, None, None, status)
+    if out[kn.LO] < 0.0:
+        return None
+    elements = (ct.element_name(ka, int(out[kn.ELEM_A])), ct.element_name(kb, int(out[kn.ELEM_B])))
+    point, normal = out[kn.POINT:kn.POINT + 3].copy(), out[kn.NORMAL:kn.NORMAL + 3].copy()
+    if out[kn.CERTIFIED] > 0.0:
+        return Contact(float(out[kn.TIME]), point, normal, status, elements=elements)
+    return Contact(float(out[kn.LO]), point, normal, status, "uncertain", (float(out[kn.LO]), float(out[kn.HI])),
+                   elements=elements)
 
 
 def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
@@ -126,15 +214,10 @@ def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     of each shape; an uncertain answer carries the bracket that holds every
     possible first contact.
     """
-    out, (ka, kb) = solve_geoms(shape_a, motion_a, shape_b, motion_b, t_max=t_max)
-    status = STATUS_NAMES[int(out[kn.STATUS])]
-    if out[kn.STATUS] != 1:
-        return Contact(0.0, None, None, status)
-    if out[kn.LO] < 0.0:
-        return None
-    elements = (ct.element_name(ka, int(out[kn.ELEM_A])), ct.element_name(kb, int(out[kn.ELEM_B])))
-    point, normal = out[kn.POINT:kn.POINT + 3].copy(), out[kn.NORMAL:kn.NORMAL + 3].copy()
-    if out[kn.CERTIFIED] > 0.0:
-        return Contact(float(out[kn.TIME]), point, normal, status, elements=elements)
-    return Contact(float(out[kn.LO]), point, normal, status, "uncertain", (float(out[kn.LO]), float(out[kn.HI])),
-                   elements=elements)
+    out, (ka, sa, kb, sb) = solve_geoms(shape_a, motion_a, shape_b, motion_b, t_max=t_max)
+    if out[kn.FAILED] == 0.0:
+        return _kernel_contact(out, ka, kb)
+    contacts = _other_solver(shape_a, motion_a, shape_b, motion_b, ka, sa, kb, sb, t_max)
+    if out[kn.FAILED] == kn.PARTIAL:
+        contacts.append(_kernel_contact(out, ka, kb))
+    return _earliest(contacts)

@@ -500,45 +500,101 @@ def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, kind, size, side):
                                  0.0, False, True)
 
 
+HANDLED, PARTIAL = 1, 2  # build_pair's answers besides 0 (the pair is the ellipsoid solver's)
+
+
+@_jit
+def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
+    """B (a sphere or capsule) against A: B's core in A inflated by B's radius (and A's own when rounded)."""
+    HAB = fr.relative(W, I, FA, FB)
+    pts = _core_points(W, I, kb, sb, HAB)
+    ra = sa[0] if rounded(ka) else 0.0
+    rb = sb[0]
+    _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, rb, ra, 0, rb)
+    if kb == CAPSULE:
+        _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], ka, sa, rb, ra, 0, rb, False, True)
+        if ka == CYLINDER:
+            for zc in (sa[1], -sa[1]):
+                segment_in_torus(W, I, CON, SYS, SYSR, N, pts[0], pts[1], sa[0], zc, rb, 0.0, 0, rb)
+    return HANDLED
+
+
+@_jit
+def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
+    """A (capsule, cylinder or box) against the ellipsoid B (radii sb)."""
+    HBA = fr.relative(W, I, FB, FA)  # A's frame into the ellipsoid's
+    HAB = fr.relative(W, I, FA, FB)
+    centre = fr.point(W, I, HAB, 0.0, 0.0, 0.0)  # the ellipsoid's centre in A: containment
+    c1 = np.empty((1, 4), dtype=np.int64)
+    c1[0] = centre
+    if ka == CAPSULE:
+        # the capsule's cylinder part; its end balls are the ellipsoid solver's
+        piece = np.array([sa[0], sa[1], 0.0])
+        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], 1)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, c1, CYLINDER, piece, 0.0, 0.0, 0, 0.0)
+        return PARTIAL
+    if ka == CYLINDER:
+        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], ELLIPSOID, sb, 1)
+        for sign in (1.0, -1.0):
+            face_section(W, I, CON, SYS, SYSR, N, HBA, sb, 2, sign, sa[1], sa, True, 0)
+        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], 1)
+    else:  # a box
+        vb = _box_vertices(W, I, sa, HBA)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 0.0, 0.0, 1, 0.0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 1)
+        for axis in range(3):
+            for sign in (1.0, -1.0):
+                face_section(W, I, CON, SYS, SYSR, N, HBA, sb, axis, sign, sa[axis], sa, False, 0)
+    _points_in_solid(W, I, CON, SYS, SYSR, N, c1, ka, sa, 0.0, 0.0, 0, 0.0)
+    return HANDLED
+
+
 @_jit
 def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
-    """All systems of the pair (shape ka, size sa, frame FA) and (kb, sb, FB); returns False for a pair this
-    builder does not handle (ellipsoid pairs with a sphere, a capsule's end or another ellipsoid)."""
-    HAB = fr.relative(W, I, FA, FB)  # B's frame into A's
-    if rounded(kb) and (kb == SPHERE or not rounded(ka) or ka == CAPSULE):
-        # B's core into A: A inflated by B's radius (and A's own, when A is rounded)
-        if ka == ELLIPSOID:
-            return False
-        pts = _core_points(W, I, kb, sb, HAB)
-        ra = sa[0] if rounded(ka) else 0.0
-        if kb == SPHERE:
-            _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, sb[0], ra, 0, sb[0])
-        else:
-            _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, sb[0], ra, 0, sb[0])
-            _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], ka, sa, sb[0], ra, 0, sb[0], False, True)
-            if ka == CYLINDER:
-                return False  # segment against the rims' tori: bivariate (not yet)
-        return True
+    """All systems of the pair (shape ka, size sa, frame FA) and (kb, sb, FB).  Returns HANDLED; PARTIAL when
+    the ellipsoid solver must add a capsule's end balls against an ellipsoid; 0 for the ellipsoid solver's
+    pairs (an ellipsoid with a sphere, an ellipsoid or a plane)."""
+    if ka > kb:
+        code = build_pair(W, I, CON, SYS, SYSR, N, kb, sb, FB, ka, sa, FA)
+        _flip(SYS, N)
+        return code
+    # now ka <= kb: SPHERE < CAPSULE < CYLINDER < BOX < ELLIPSOID < PLANE
+    if ka == SPHERE and kb == ELLIPSOID or ka == ELLIPSOID:
+        return 0
     if rounded(ka):
-        return build_pair(W, I, CON, SYS, SYSR, N, kb, sb, FB, ka, sa, FA) and _flip(SYS, N)
-    if ka == PLANE or kb == PLANE:
-        if ka != PLANE:
-            return build_pair(W, I, CON, SYS, SYSR, N, kb, sb, FB, ka, sa, FA) and _flip(SYS, N)
-        if kb == BOX:
-            _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sb, HAB), PLANE, sa, 0.0, 0.0, 0, 0.0)
-            return True
-        if kb == CYLINDER:
-            _plane_rims(W, I, CON, SYS, SYSR, N, sb, HAB, 0)
-            return True
-        return False
-    if ka == BOX and kb == BOX:
-        HBA = fr.relative(W, I, FB, FA)
+        if kb == ELLIPSOID:
+            return _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB)
+        code = _rounded_into(W, I, CON, SYS, SYSR, N, kb, sb, FB, ka, sa, FA)  # A's core into B
+        _flip(SYS, N)
+        return code
+    if kb == PLANE:
+        HBA = fr.relative(W, I, FB, FA)  # A into the plane's frame
+        if ka == BOX:
+            _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), PLANE, sb, 0.0, 0.0, 1, 0.0)
+        else:
+            _plane_rims(W, I, CON, SYS, SYSR, N, sa, HBA, 1)
+        return HANDLED
+    if kb == ELLIPSOID:
+        return _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB)
+    HAB = fr.relative(W, I, FA, FB)
+    HBA = fr.relative(W, I, FB, FA)
+    if ka == BOX:  # box and box
         vb = _box_vertices(W, I, sb, HAB)
         _points_in_solid(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0.0, 0.0, 0, 0.0)
         _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), BOX, sb, 0.0, 0.0, 1, 0.0)
         _box_edges_in(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0)
-        return True
-    return False
+        return HANDLED
+    if kb == BOX:  # cylinder and box
+        vb = _box_vertices(W, I, sb, HAB)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0.0, 0.0, 0, 0.0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0)
+        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], BOX, sb, 1)
+        return HANDLED
+    # cylinder and cylinder
+    _circles_in_solid(W, I, CON, SYS, SYSR, N, HAB, sb[0], sb[1], CYLINDER, sa, 0)
+    _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], CYLINDER, sb, 1)
+    axis_lines(W, I, CON, SYS, SYSR, N, HAB, sa[0], sa[1], sb[0], sb[1], 0)
+    return HANDLED
 
 
 @_jit
@@ -546,4 +602,309 @@ def _flip(SYS, N):
     """After building a pair with its shapes swapped: every system's side is turned back to the caller's."""
     for k in range(N[1]):
         SYS[k, 2] = 1 - SYS[k, 2]
+
+
+# ---------------------------------------------------------------- points on a circle (bivariate in s)
+
+
+@_jit
+def circle_rows(W, I, H, zc, r, chart):
+    """The circle of radius r about the local z axis at height zc, under the map H: a homogeneous point
+    (4, 3) of row slots, degree 2 in s.  Chart 0 covers the half x >= 0 (angle -pi/2..pi/2, by the tangent
+    of its half: sigma = 2s - 1), chart 1 the half x <= 0."""
+    out = np.empty((4, 3), dtype=np.int64)
+    p0 = fr.point(W, I, H, 0.0, -r, zc)
+    p2 = fr.point(W, I, H, 0.0, r, zc)
+    d = fr.direction(W, I, H, r if chart == 0 else -r, 0.0, 0.0)
+    zero = P.const(W, I, 0.0)
+    for c in range(4):
+        out[c, 0] = p0[c]
+        out[c, 2] = p2[c]
+        out[c, 1] = d[c] if c < 3 else zero
+    return out
+
+
+@_jit
+def _blin(W, I, rows, row):
+    """A linear constraint on a bivariate homogeneous point: row by row."""
+    ds = rows.shape[1] - 1
+    out = np.empty(ds + 1, dtype=np.int64)
+    pt = np.empty(4, dtype=np.int64)
+    for i in range(ds + 1):
+        for c in range(4):
+            pt[c] = rows[c, i]
+        out[i] = _lin(W, I, pt, row)
+    return out
+
+
+@_jit
+def _bcoord(W, I, rows, c, e):
+    """The bivariate coordinate c of the point less e times its weight (row by row)."""
+    ds = rows.shape[1] - 1
+    out = np.empty(ds + 1, dtype=np.int64)
+    for i in range(ds + 1):
+        out[i] = rows[c, i] if e == 0.0 else P.add(W, I, rows[c, i], rows[3, i], -e)
+    return out
+
+
+@_jit
+def _bquadric(W, I, qk, qp, rows):
+    """The piece's quadric at a bivariate homogeneous point (degree twice the point's in s)."""
+    acc = np.empty(0, dtype=np.int64)
+    first = True
+    axis = int(qp[0]) if qk == AXCYL else -1
+    for i in range(3):
+        if i == axis:
+            continue
+        if qk == ELLIPSOIDAL:
+            u = np.empty(rows.shape[1], dtype=np.int64)
+            for k in range(rows.shape[1]):
+                u[k] = P.frac(W, I, rows[i, k], 1.0, qp[1 + i])
+        else:
+            u = _bcoord(W, I, rows, i, qp[1 + i])
+        term = P.bmul(W, I, u, u)
+        acc = term if first else P.badd(W, I, acc, term, 1.0)
+        first = False
+    if qk == ELLIPSOIDAL:
+        w = rows[3].copy()
+    else:
+        w = np.empty(rows.shape[1], dtype=np.int64)
+        for k in range(rows.shape[1]):
+            w[k] = _radius_times(W, I, rows[3, k], qp)
+    return P.badd(W, I, acc, P.bmul(W, I, w, w), -1.0)
+
+
+@_jit
+def _bpositive(W, I, rows):
+    """True when a bivariate polynomial is proven > 0 everywhere (each row's coefficients are)."""
+    for i in range(rows.shape[0]):
+        if not _positive(W, I, rows[i]):
+            return False
     return True
+
+
+@_jit
+def curve_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
+    """The bivariate system 'the point pt (rows in s) lies in the piece'."""
+    cons = np.empty((MAXLIN + 1, 5), dtype=np.int64)
+    degs = np.empty(MAXLIN + 1, dtype=np.int64)
+    m = 0
+    for r in range(nlin):
+        b = _blin(W, I, pt, lins[r])
+        if _bpositive(W, I, b):
+            return
+        degs[m] = b.shape[0] - 1
+        cons[m, :b.shape[0]] = b
+        m += 1
+    if qk != NONE:
+        q = _bquadric(W, I, qk, qp, pt)
+        if _bpositive(W, I, q):
+            return
+        degs[m] = q.shape[0] - 1
+        cons[m, :q.shape[0]] = q
+        m += 1
+    start = N[0]
+    for r in range(m):
+        _bcon(CON, N, cons[r, :degs[r] + 1])
+    _bclose(SYS, SYSR, N, start, side, pt, r_w)
+
+
+@_jit
+def _circles_in_solid(W, I, CON, SYS, SYSR, N, H, r, h, kind, size, side):
+    """The two rims (radius r, heights +-h) of a cylinder, mapped by H into the frame of the solid ``kind``,
+    against that solid, both charts each."""
+    PQ, PP, PL, PN, npc = solid_pieces(kind, size, 0.0, 0.0)
+    for zc in (h, -h):
+        for chart in range(2):
+            rows = circle_rows(W, I, H, zc, r, chart)
+            for k in range(npc):
+                curve_in_piece(W, I, CON, SYS, SYSR, N, rows, PQ[k], PP[k], PL[k], PN[k], side, 0.0)
+
+
+@_jit
+def segment_in_torus(W, I, CON, SYS, SYSR, N, p0, p1, rc, zc, R1, R2, side, r_w):
+    """The bivariate systems 'a point of the segment [p0, p1] lies within R1 + R2 of the circle of radius rc
+    about the z axis at height zc' (see :func:`point_in_torus`)."""
+    rows = np.empty((4, 2), dtype=np.int64)
+    for c in range(4):
+        rows[c, 0], rows[c, 1] = p0[c], p1[c]
+    x, y = rows[0], rows[1]
+    z = _bcoord(W, I, rows, 2, zc)
+    rho2 = P.badd(W, I, P.bmul(W, I, x, x), P.bmul(W, I, y, y), 1.0)
+    wr = np.empty(2, dtype=np.int64)
+    wR = np.empty(2, dtype=np.int64)
+    for k in range(2):
+        wr[k] = P.scale(W, I, rows[3, k], rc)
+        wR[k] = P.add(W, I, P.scale(W, I, rows[3, k], R1), P.scale(W, I, rows[3, k], R2), 1.0)
+    K = P.badd(W, I, P.badd(W, I, rho2, P.bmul(W, I, z, z), 1.0),
+               P.badd(W, I, P.bmul(W, I, wr, wr), P.bmul(W, I, wR, wR), -1.0), 1.0)
+    if not _bpositive(W, I, K):
+        start = N[0]
+        _bcon(CON, N, K)
+        _bclose(SYS, SYSR, N, start, side, rows, r_w)
+    four_r2 = P.bmul(W, I, wr, wr)
+    for k in range(four_r2.shape[0]):
+        four_r2[k] = P.scale(W, I, four_r2[k], 4.0)
+    T = P.badd(W, I, P.bmul(W, I, K, K), P.bmul(W, I, four_r2, rho2), -1.0)
+    if not _bpositive(W, I, T):
+        start = N[0]
+        _bcon(CON, N, T)
+        _bclose(SYS, SYSR, N, start, side, rows, r_w)
+
+
+# ---------------------------------------------------------------- against an ellipsoid: sections and shadows
+
+
+@_jit
+def _ellipsoid_form(W, I, rad, U, V):
+    """sum U_i V_i / r_i^2 - Uw Vw in the ellipsoid's frame (U, V homogeneous, 4 slots)."""
+    return _bilinear(W, I, ELLIPSOIDAL, np.array([0.0, rad[0], rad[1], rad[2], 0.0, 0.0, 0.0]), U, V)
+
+
+@_jit
+def face_section(W, I, CON, SYS, SYSR, N, H, rad, axis, sign, h, size, disk, side):
+    """The planar face x_axis = sign h of a box (half sizes ``size``) or, with ``disk``, the cap of radius
+    size[0] of a cylinder, against the ellipsoid (radii ``rad``) in whose frame H maps the face's shape: the
+    section of the ellipsoid by the face's plane is not empty and its centre lies on the face.  The centre
+    solves the section's 2x2 system by the adjugate: the constraints are polynomial."""
+    a, b = (axis + 1) % 3, (axis + 2) % 3
+    e = np.zeros(3)
+    e[axis] = sign * h
+    C0 = fr.point(W, I, H, e[0], e[1], e[2])
+    da, db = np.zeros(3), np.zeros(3)
+    da[a], db[b] = 1.0, 1.0
+    zero = P.const(W, I, 0.0)
+    A = np.empty(4, dtype=np.int64)
+    B = np.empty(4, dtype=np.int64)
+    A[:3] = fr.direction(W, I, H, da[0], da[1], da[2])
+    B[:3] = fr.direction(W, I, H, db[0], db[1], db[2])
+    A[3] = B[3] = zero
+    Muu, Muv, Mvv = _ellipsoid_form(W, I, rad, A, A), _ellipsoid_form(W, I, rad, A, B), _ellipsoid_form(W, I, rad, B, B)
+    mu, mv, m11 = _ellipsoid_form(W, I, rad, A, C0), _ellipsoid_form(W, I, rad, B, C0), _ellipsoid_form(W, I, rad, C0, C0)
+    det = P.add(W, I, P.mul(W, I, Muu, Mvv), P.sq(W, I, Muv), -1.0)
+    # -adj(M2) m: the centre's coordinates times det
+    cu = P.add(W, I, P.mul(W, I, Muv, mv), P.mul(W, I, Mvv, mu), -1.0)
+    cv = P.add(W, I, P.mul(W, I, Muv, mu), P.mul(W, I, Muu, mv), -1.0)
+    # det m11 + (centre . m) <= 0, i.e. the minimum of the section's quadratic, times det^2 ... over det
+    nonempty = P.add(W, I, P.mul(W, I, det, m11), P.add(W, I, P.mul(W, I, cu, mu), P.mul(W, I, cv, mv), 1.0), 1.0)
+    if _positive(W, I, nonempty):
+        return
+    cons = np.empty(5, dtype=np.int64)
+    m = 0
+    cons[m] = nonempty
+    m += 1
+    if disk:
+        r = size[0]
+        inside = P.add(W, I, P.add(W, I, P.sq(W, I, cu), P.sq(W, I, cv), 1.0), P.sq(W, I, P.scale(W, I, det, r)), -1.0)
+        if _positive(W, I, inside):
+            return
+        cons[m] = inside
+        m += 1
+    else:
+        for c, half in ((cu, size[a]), (cv, size[b])):
+            for sg in (1.0, -1.0):
+                k = P.add(W, I, P.scale(W, I, c, sg), det, -half)
+                if _positive(W, I, k):
+                    return
+                cons[m] = k
+                m += 1
+    start = N[0]
+    for r_ in range(m):
+        _con(CON, N, cons[r_])
+    # the witness: the section's centre in the face's frame, homogeneous with weight det
+    wit = np.empty(4, dtype=np.int64)
+    coords = np.empty(3, dtype=np.int64)
+    coords[a], coords[b], coords[axis] = cu, cv, P.scale(W, I, det, sign * h)
+    for c in range(3):
+        wit[c] = coords[c]
+    wit[3] = det
+    _close(SYS, SYSR, N, start, side, wit, 0.0)
+
+
+@_jit
+def lateral_shadow(W, I, CON, SYS, SYSR, N, H, rad, r, h, side):
+    """The side of a cylinder (radius r, |z| <= h; H maps its frame into the ellipsoid's) against the
+    ellipsoid: a line of the side (through a point of the circle of radius r, parallel to the axis) meets
+    the ellipsoid in a chord whose middle lies within |z| <= h.  Per chart of the circle: the chord's
+    discriminant beta^2 - alpha gamma >= 0 and beta^2 <= h^2 w^2 alpha^2, with alpha the axis's quadratic
+    form, beta its pairing with the circle's point, gamma the point's form (w the point's weight)."""
+    zero = P.const(W, I, 0.0)
+    D = np.empty(4, dtype=np.int64)
+    D[:3] = fr.direction(W, I, H, 0.0, 0.0, 1.0)
+    D[3] = zero
+    alpha = _ellipsoid_form(W, I, rad, D, D)
+    # the same circle's points in its own frame carry the weights (their third coordinate is 0)
+    for chart in range(2):
+        rows = circle_rows(W, I, H, 0.0, r, chart)
+        ds = 2
+        beta = np.empty(ds + 1, dtype=np.int64)
+        pt = np.empty(4, dtype=np.int64)
+        for i in range(ds + 1):
+            for c in range(4):
+                pt[c] = rows[c, i]
+            beta[i] = _ellipsoid_form(W, I, rad, D, pt)
+        gamma = _bquadric(W, I, ELLIPSOIDAL, np.array([0.0, rad[0], rad[1], rad[2], 0.0, 0.0, 0.0]), rows)
+        b2 = P.bmul(W, I, beta, beta)
+        disc = P.badd(W, I, P.bscale_t(W, I, gamma, alpha), b2, -1.0)  # alpha gamma - beta^2 <= 0
+        if _bpositive(W, I, disc):
+            continue
+        # h alpha w(s), w the circle point's own weight (rows 1, 0, 1): the chord's middle within the side
+        hw = np.empty(ds + 1, dtype=np.int64)
+        ha = P.scale(W, I, alpha, h)
+        hw[0], hw[1], hw[2] = ha, zero, ha
+        within = P.badd(W, I, b2, P.bmul(W, I, hw, hw), -1.0)
+        if _bpositive(W, I, within):
+            continue
+        start = N[0]
+        _bcon(CON, N, disc)
+        _bcon(CON, N, within)
+        # witness in the ellipsoid's frame: (alpha point - beta axis) / (alpha w)
+        wit = np.empty((4, ds + 1), dtype=np.int64)
+        for i in range(ds + 1):
+            for c in range(4):
+                t = P.mul(W, I, alpha, rows[c, i])
+                wit[c, i] = t if c == 3 else P.add(W, I, t, P.mul(W, I, beta[i], D[c]), -1.0)
+        _bclose(SYS, SYSR, N, start, side, wit, 0.0)
+
+
+@_jit
+def axis_lines(W, I, CON, SYS, SYSR, N, H, ra, ha, rb, hb, side):
+    """Side against side of two cylinders (radii ra, rb, half lengths ha, hb; H maps B's frame into A's): the
+    closest points of their axis lines lie within both lengths, at most ra + rb apart.  With n = e_z x D (D
+    B's axis, |D| = w, the map's weight), P B's centre: (P.n)^2 <= (ra+rb)^2 w^2 |n|^2,
+    (|D|^2 P_z - D_z D.P)^2 <= ha^2 w^2 |n|^4 and (D_z P_z - D.P)^2 <= hb^2 |n|^4.  Parallel axes (n = 0)
+    touch side to side only where their rims do too."""
+    P0 = fr.point(W, I, H, 0.0, 0.0, 0.0)
+    D = fr.direction(W, I, H, 0.0, 0.0, 1.0)
+    w = H[fr.M0]
+    nx, ny = P.scale(W, I, D[1], -1.0), D[0]
+    n2 = P.add(W, I, P.sq(W, I, D[0]), P.sq(W, I, D[1]), 1.0)
+    if P.is_zero(W, I, n2):
+        return
+    pn = P.add(W, I, P.mul(W, I, P0[0], nx), P.mul(W, I, P0[1], ny), 1.0)
+    rw = P.add(W, I, P.scale(W, I, w, ra), P.scale(W, I, w, rb), 1.0)
+    dist = P.add(W, I, P.sq(W, I, pn), P.mul(W, I, P.sq(W, I, rw), n2), -1.0)
+    if _positive(W, I, dist):
+        return
+    dp = P.dot3(W, I, D[0], D[1], D[2], P0[0], P0[1], P0[2])
+    D2 = P.add(W, I, n2, P.sq(W, I, D[2]), 1.0)
+    sa = P.add(W, I, P.mul(W, I, D2, P0[2]), P.mul(W, I, D[2], dp), -1.0)    # s_A w |n|^2
+    zb = P.add(W, I, P.mul(W, I, D[2], P0[2]), dp, -1.0)                    # z_B |n|^2
+    n4 = P.sq(W, I, n2)
+    ca = P.add(W, I, P.sq(W, I, sa), P.mul(W, I, P.sq(W, I, P.scale(W, I, w, ha)), n4), -1.0)
+    cb = P.add(W, I, P.sq(W, I, zb), P.mul(W, I, P.sq(W, I, P.const(W, I, hb)), n4), -1.0)
+    if _positive(W, I, ca) or _positive(W, I, cb):
+        return
+    start = N[0]
+    _con(CON, N, dist)
+    _con(CON, N, ca)
+    _con(CON, N, cb)
+    # witness: the point of A's side toward B, at A's closest point: (0, 0, s_A) + ra (P.n) n / ((ra+rb) w |n|^2)
+    frac_a = ra / (ra + rb)
+    wit = np.empty(4, dtype=np.int64)
+    k = P.scale(W, I, pn, frac_a)
+    wit[0] = P.mul(W, I, k, nx)
+    wit[1] = P.mul(W, I, k, ny)
+    wit[2] = sa
+    wit[3] = P.mul(W, I, w, n2)
+    _close(SYS, SYSR, N, start, side, wit, 0.0)

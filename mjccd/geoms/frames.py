@@ -153,20 +153,20 @@ def relative(W, I, Fa, Fb):
 
 
 @_jit
-def rational_frame(W, I, rot, rot_mag, rd, rd_mag, tr, tr_mag, td, td_mag, depth):
+def rational_frame(W, I, rot, rot_err, rd, rd_err, tr, tr_err, td, td_err):
     """The frame of a rational motion ``x = (rot / rd) y + tr / td`` from Bernstein coefficients (rot (3, 3, n),
-    rd (n,), tr (3, k), td (k,)) with magnitudes and the depth of their conversion; the inverse by the
+    rd (n,), tr (3, k), td (k,)) with bounds of their conversion's errors; the inverse by the
     adjugate: ``y = rd adj(rot) (td x - tr) / (det(rot) td)``."""
     F = np.empty(FRAME, dtype=np.int64)
     R = np.empty(9, dtype=np.int64)
     for i in range(3):
         for j in range(3):
-            R[3 * i + j] = P.from_coefficients(W, I, rot[i, j], rot_mag[i, j], depth)
-    d = P.from_coefficients(W, I, rd, rd_mag, depth)
-    e = P.from_coefficients(W, I, td, td_mag, depth)
+            R[3 * i + j] = P.from_coefficients(W, I, rot[i, j], rot_err[i, j])
+    d = P.from_coefficients(W, I, rd, rd_err)
+    e = P.from_coefficients(W, I, td, td_err)
     T = np.empty(3, dtype=np.int64)
     for i in range(3):
-        T[i] = P.from_coefficients(W, I, tr[i], tr_mag[i], depth)
+        T[i] = P.from_coefficients(W, I, tr[i], tr_err[i])
     # forward: [[rot td, tr rd], [0, rd td]]
     for k in range(9):
         F[L0 + k] = P.mul(W, I, R[k], e)

@@ -18,9 +18,9 @@ from mjccd.geoms import systems as sy
 from mjccd.geoms.poly import _jit
 
 TIME_TOL = 1e-9             # a first contact is certified when its proven bracket is this narrow
-OUT = 16                    # fields of a pair's answer, see pair_kernel
-STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED = (
-    0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15)
+OUT = 17                    # fields of a pair's answer, see pair_kernel
+STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED, TIER = (
+    0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15, 16)
 NOT_HANDLED, OVERFLOW, PARTIAL = 1.0, 2.0, 3.0  # values of out[FAILED]; PARTIAL: the ellipsoid solver adds more
 
 
@@ -120,14 +120,14 @@ def _contact(W, I, SYS, SYSR, k, s, t, ka, sa, FA, kb, sb, FB, out):
 
 
 @_jit
-def _systems_of(W, I, ka, sa, rows_a, kb, sb, rows_b):
-    """Frames and systems of the pair in the workspace (W, I), emptied first; returns (FA, FB, CON, SYS, SYSR,
-    N, C, DS, DT, errs, code) with each constraint's double coefficients C (rows in s, columns in t), degrees
-    DS in s and DT in t, error bounds, and build_pair's code (or OVERFLOW)."""
+def _systems_of(W, I, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b):
+    """Frames and systems of the pair in the workspace (W, I) and the system store (CON, SYS, SYSR, N), both
+    emptied first; returns (FA, FB, C, DS, DT, errs, code) with each constraint's double coefficients C (rows
+    in s, columns in t), degrees DS in s and DT in t, error bounds, and build_pair's code (or -1: overflow)."""
     P.reset(W, I)
+    N[0] = N[1] = N[2] = 0
     FA = fr.chain_frame(W, I, rows_a)
     FB = fr.chain_frame(W, I, rows_b)
-    CON, SYS, SYSR, N = sy.new_store(1024, 8192)
     code = sy.build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB)
     ncon = N[0]
     ds_max, nt_max = 0, 0
@@ -160,13 +160,13 @@ def _systems_of(W, I, ka, sa, rows_a, kb, sb, rows_b):
             errs[c] += P.gamma(10 * DS[c] + 8) * (big + errs[c])
     if code != 0 and (N[2] or P.failed(I)):
         code = -1
-    return FA, FB, CON, SYS, SYSR, N, C, DS, DT, errs, code
+    return FA, FB, C, DS, DT, errs, code
 
 
 @_jit
 def _elevated(W, I, k, n):
     """Slot k elevated to degree n (a sum with a zero of degree n elevates it, with its bounds)."""
-    z = P.alloc(W, I, n, 0)
+    z = P.alloc(W, I, n)
     for q in range(n + 1):
         for r in range(W.shape[1]):
             W[z, r, q] = 0.0
@@ -252,11 +252,12 @@ def _bstatus_at_start(C, DS, DT, errs):
 
 
 @_jit
-def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, out):
+def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
     """First contact over [0, t_end] of shape ka (size sa (3,), motion rows_a (n, ELEMENT_FIELDS)) and shape kb.
 
     ``W, I``: a double workspace, ``Wdd, Idd``: a double-double one
-    (:func:`mjccd.geoms.poly.workspace`); the pair is solved in doubles and,
+    (:func:`mjccd.geoms.poly.workspace`), ``CON, SYS, SYSR, N`` a system
+    store (:func:`mjccd.geoms.systems.new_store`), all reused; the pair is solved in doubles and,
     when that leaves its first contact in a bracket wider than TIME_TOL,
     again in double-double.  out (OUT,): [STATUS] 1 separate, 0 touching, -1
     overlapping at t = 0; [LO, HI] the proven bracket of the first contact
@@ -265,18 +266,20 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, out):
     a) and [ELEM_A], [ELEM_B] (element codes) of the contact; [SYSTEMS] how
     many systems the pair has, [WINNER] the one that touches first;
     [FAILED] 0, or NOT_HANDLED (a pair for another solver), OVERFLOW (a
-    workspace too small).
+    workspace too small), PARTIAL (the ellipsoid solver adds systems);
+    [TIER] 0 when doubles sufficed, 1 when double-double was needed.
     """
     for i in range(OUT):
         out[i] = 0.0
     out[LO] = out[HI] = out[TIME] = -1.0
     for tier in range(2):
         Wt, It = (W, I) if tier == 0 else (Wdd, Idd)
-        FA, FB, CON, SYS, SYSR, N, C, DS, DT, errs, code = _systems_of(Wt, It, ka, sa, rows_a, kb, sb, rows_b)
+        FA, FB, C, DS, DT, errs, code = _systems_of(Wt, It, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b)
         if code <= 0:
             out[FAILED] = NOT_HANDLED if code == 0 else OVERFLOW
             return
         out[FAILED] = PARTIAL if code == sy.PARTIAL else 0.0
+        out[TIER] = tier
         best, s_best = _scan_all(SYS, N, C, DS, DT, errs, t_end, out)
         if out[CERTIFIED] > 0.0 or tier == 1:
             if best >= 0:

@@ -3,22 +3,25 @@
 A *workspace* is an arena of slots, each holding one univariate polynomial in
 Bernstein form:
 
-* ``W[k, 0, :n+1]`` its coefficients, ``W[k, 1, :n+1]`` its *magnitudes*: the
-  same straight-line program run on the absolute values of the inputs;
+* ``W[k, 0, :n+1]`` its coefficients, ``W[k, 1, :n+1]`` a proven bound of each
+  coefficient's error against the exact result of the same operations on the
+  exact inputs;
 * in a *double-double* workspace (``W.shape[1] == 3``) ``W[k, 2]`` holds the
   low parts: every operation is then carried in double-double arithmetic;
-* ``I[k, 0]`` its degree n, ``I[k, 1]`` its *depth*: the most roundings along
-  any path of that program; ``I[-1, 0]`` counts the slots in use and
-  ``I[-1, 1]`` is set once an allocation failed.
+* ``I[k, 0]`` its degree n; ``I[-1, 0]`` counts the slots in use (slot 0 is
+  the scratch of degree elevations) and ``I[-1, 1]`` is set once an
+  allocation failed.
 
-Every input is an exact double, so the computed coefficients differ from the
-exact program's by at most ``gamma(depth) * magnitude`` in double arithmetic
-(the standard bound for straight-line programs, Higham 2002, Lemma 3.1), and
-by ``depth * 8 u^2 * magnitude`` in double-double, where each operation errs
-by at most a few u^2 of its operands' magnitudes (Joldes, Muller and Popescu
-2017).  :func:`error` adds the rounding of the scanners that restrict and
-evaluate the polynomial.  Slots are never freed: a workspace serves one pair
-query, and :func:`reset` empties it for the next.
+The bounds are a *running error analysis* (Wilkinson; Higham 2002, §3.3):
+each operation adds to its inputs' propagated bounds the rounding it commits,
+bounded from the values it actually computed (``u |result|``, or the sum of
+the magnitudes of the terms it added), so a bound follows the values rather
+than a worst case of the whole program.  In double-double, each operation's
+own rounding is a few u^2 of its operands (Joldes, Muller and Popescu 2017).
+Every bound is rounded up by a relative margin of 1e-12, which covers the
+rounding of the bounds' own arithmetic.  :func:`error` adds the rounding of
+the scanners that restrict and evaluate a polynomial.  Inputs are exact
+doubles: positions, quaternions and sizes as the caller gave them.
 
 A *bivariate* polynomial in (s, t), Bernstein in both, is a row of slots: one
 univariate polynomial in t per Bernstein coefficient in s (the ``b*``
@@ -36,6 +39,7 @@ _inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=
 
 EPS = 2.220446049250313e-16
 DD_EPS = 16.0 * EPS * EPS    # the relative error of one double-double operation, bounded generously
+UP = 1.0 + 1e-12             # the margin every bound is rounded up by
 MAX_DEGREE = 96
 # C(n, k) correctly rounded; exact (so free of rounding) up to n = 56, where they stay below 2^53
 BINOMIALS = np.array([[float(math.comb(n, k)) for k in range(MAX_DEGREE + 1)] for n in range(MAX_DEGREE + 1)])
@@ -46,6 +50,12 @@ EXACT_BINOMIALS = 56
 def gamma(k):
     """gamma_k = k u / (1 - k u), the relative error bound of k rounded operations."""
     return k * EPS / (1.0 - k * EPS)
+
+
+@_inline
+def _unit(W):
+    """The rounding unit of the workspace's arithmetic (u, or a few u^2 in double-double)."""
+    return DD_EPS if W.shape[1] == 3 else EPS
 
 
 def workspace(slots, degree, double_double=False):
@@ -59,7 +69,7 @@ def workspace(slots, degree, double_double=False):
 @_jit
 def reset(W, I):
     """Empty the workspace for the next query."""
-    I[-1, 0] = 1  # slot 0 is the scratch of elevations
+    I[-1, 0] = 1
     I[-1, 1] = 0
 
 
@@ -123,16 +133,15 @@ def dd_div_d(ah, al, b):
 
 
 @_inline
-def alloc(W, I, degree, depth):
-    """A new slot of the given degree and depth (arrays uninitialised); slot 0 (the scratch) when the arena is
-    full or the degree too high, which marks the workspace as failed."""
+def alloc(W, I, degree):
+    """A new slot of the given degree (arrays uninitialised); slot 0 (the scratch) when the arena is full or
+    the degree too high, which marks the workspace as failed."""
     k = I[-1, 0]
     if k >= W.shape[0] or degree >= W.shape[2]:
         I[-1, 1] = 1
         return 0
     I[-1, 0] = k + 1
     I[k, 0] = degree
-    I[k, 1] = depth
     return k
 
 
@@ -142,12 +151,18 @@ def failed(I):
     return I[-1, 1] != 0
 
 
+@_inline
+def _coef(W, k, i):
+    """Coefficient i of slot k as one double."""
+    return W[k, 0, i] + W[k, 2, i] if W.shape[1] == 3 else W[k, 0, i]
+
+
 @_jit
 def const(W, I, value):
     """The constant ``value`` (exact)."""
-    k = alloc(W, I, 0, 0)
+    k = alloc(W, I, 0)
     W[k, 0, 0] = value
-    W[k, 1, 0] = abs(value)
+    W[k, 1, 0] = 0.0
     if _dd(W):
         W[k, 2, 0] = 0.0
     return k
@@ -158,21 +173,21 @@ def linear(W, I, v0, v1):
     """(1 - t) v0 + t v1 (exact: its Bernstein coefficients are v0, v1)."""
     if v0 == v1:
         return const(W, I, v0)
-    k = alloc(W, I, 1, 0)
+    k = alloc(W, I, 1)
     W[k, 0, 0], W[k, 0, 1] = v0, v1
-    W[k, 1, 0], W[k, 1, 1] = abs(v0), abs(v1)
+    W[k, 1, 0] = W[k, 1, 1] = 0.0
     if _dd(W):
         W[k, 2, 0] = W[k, 2, 1] = 0.0
     return k
 
 
 @_jit
-def from_coefficients(W, I, c, m, depth):
-    """A slot holding Bernstein coefficients ``c`` with magnitudes ``m`` and the given depth."""
-    k = alloc(W, I, c.shape[0] - 1, depth)
+def from_coefficients(W, I, c, e):
+    """A slot holding Bernstein coefficients ``c`` whose errors are bounded by ``e``."""
+    k = alloc(W, I, c.shape[0] - 1)
     for i in range(c.shape[0]):
         W[k, 0, i] = c[i]
-        W[k, 1, i] = m[i]
+        W[k, 1, i] = e[i]
         if _dd(W):
             W[k, 2, i] = 0.0
     return k
@@ -180,8 +195,10 @@ def from_coefficients(W, I, c, m, depth):
 
 @_inline
 def _elevate_into(W, a, m, n, dst):
-    """Coefficients (all rows) of slot a (degree m) elevated to degree n, written into slot dst."""
+    """Slot a (degree m) elevated to degree n, coefficients and bounds, written into slot dst: each step
+    c'_i = (i c_{i-1} + (d + 1 - i) c_i) / (d + 1), four roundings."""
     rows = W.shape[1]
+    u4 = 4.0 * _unit(W)
     for r in range(rows):
         for i in range(m + 1):
             W[dst, r, i] = W[a, r, i]
@@ -190,6 +207,8 @@ def _elevate_into(W, a, m, n, dst):
             W[dst, r, d + 1] = W[dst, r, d]
         for i in range(d, 0, -1):
             num0, num1 = float(i), float(d + 1 - i)
+            mag = (num0 * abs(_coef(W, dst, i - 1)) + num1 * abs(_coef(W, dst, i))) / (d + 1.0)
+            err = (num0 * W[dst, 1, i - 1] + num1 * W[dst, 1, i]) / (d + 1.0)
             if rows == 3:
                 h1, l1 = dd_mul_d(W[dst, 0, i - 1], W[dst, 2, i - 1], num0)
                 h2, l2 = dd_mul_d(W[dst, 0, i], W[dst, 2, i], num1)
@@ -197,14 +216,7 @@ def _elevate_into(W, a, m, n, dst):
                 W[dst, 0, i], W[dst, 2, i] = dd_div_d(h, lo, d + 1.0)
             else:
                 W[dst, 0, i] = (num0 * W[dst, 0, i - 1] + num1 * W[dst, 0, i]) / (d + 1.0)
-            W[dst, 1, i] = (num0 * W[dst, 1, i - 1] + num1 * W[dst, 1, i]) / (d + 1.0)
-
-
-@_inline
-def _elevation_depth(m, n):
-    """Roundings that elevating from degree m to n adds on any path (4 a step: two products, the sum and the
-    division)."""
-    return 4 * (n - m)
+            W[dst, 1, i] = (err + u4 * mag) * UP
 
 
 @_jit
@@ -212,9 +224,7 @@ def add(W, I, a, b, sb):
     """a + sb * b (sb an exact double: 1.0, -1.0 or any scale), elevating the lower degree."""
     ma, mb = I[a, 0], I[b, 0]
     n = max(ma, mb)
-    da = I[a, 1] + _elevation_depth(ma, n)
-    db = I[b, 1] + _elevation_depth(mb, n) + (0 if sb == 1.0 or sb == -1.0 else 1)
-    k = alloc(W, I, n, max(da, db) + 1)
+    k = alloc(W, I, n)
     if k == 0:
         return 0
     if ma < n:
@@ -224,15 +234,23 @@ def add(W, I, a, b, sb):
         _elevate_into(W, b, mb, n, 0)
         b = 0
     asb = abs(sb)
+    exact_scale = sb == 1.0 or sb == -1.0
+    u = _unit(W)
     if _dd(W):
         for i in range(n + 1):
             bh, bl = dd_mul_d(W[b, 0, i], W[b, 2, i], sb)
             W[k, 0, i], W[k, 2, i] = dd_add(W[a, 0, i], W[a, 2, i], bh, bl)
-            W[k, 1, i] = W[a, 1, i] + asb * W[b, 1, i]
+            mag = abs(_coef(W, a, i)) + asb * abs(_coef(W, b, i))
+            W[k, 1, i] = (W[a, 1, i] + asb * W[b, 1, i] + 2.0 * u * mag) * UP
     else:
         for i in range(n + 1):
-            W[k, 0, i] = W[a, 0, i] + sb * W[b, 0, i]
-            W[k, 1, i] = W[a, 1, i] + asb * W[b, 1, i]
+            sbv = sb * W[b, 0, i]
+            c = W[a, 0, i] + sbv
+            W[k, 0, i] = c
+            err = W[a, 1, i] + asb * W[b, 1, i] + u * abs(c)
+            if not exact_scale:
+                err += u * abs(sbv)
+            W[k, 1, i] = err * UP
     return k
 
 
@@ -240,15 +258,20 @@ def add(W, I, a, b, sb):
 def scale(W, I, a, s):
     """s * a for an exact double s."""
     n = I[a, 0]
-    k = alloc(W, I, n, I[a, 1] + (0 if s == 1.0 or s == -1.0 else 1))
+    k = alloc(W, I, n)
     if k == 0:
         return 0
+    exact = s == 1.0 or s == -1.0
+    u = _unit(W)
     for i in range(n + 1):
         if _dd(W):
             W[k, 0, i], W[k, 2, i] = dd_mul_d(W[a, 0, i], W[a, 2, i], s)
         else:
             W[k, 0, i] = s * W[a, 0, i]
-        W[k, 1, i] = abs(s) * W[a, 1, i]
+        err = abs(s) * W[a, 1, i]
+        if not exact:
+            err += u * abs(_coef(W, k, i))
+        W[k, 1, i] = err * UP
     return k
 
 
@@ -256,53 +279,66 @@ def scale(W, I, a, s):
 def frac(W, I, a, num, den):
     """a * num / den for exact doubles num and den (two roundings)."""
     n = I[a, 0]
-    k = alloc(W, I, n, I[a, 1] + 2)
+    k = alloc(W, I, n)
     if k == 0:
         return 0
+    u = _unit(W)
     for i in range(n + 1):
         if _dd(W):
             h, lo = dd_mul_d(W[a, 0, i], W[a, 2, i], num)
             W[k, 0, i], W[k, 2, i] = dd_div_d(h, lo, den)
         else:
             W[k, 0, i] = W[a, 0, i] * num / den
-        W[k, 1, i] = W[a, 1, i] * abs(num) / abs(den)
+        W[k, 1, i] = (W[a, 1, i] * abs(num) / abs(den) + 2.0 * u * abs(_coef(W, k, i))) * (UP + 2.0 * u)
     return k
 
 
 @_jit
 def mul(W, I, a, b):
-    """a * b (degree m + n), as a convolution in the scaled Bernstein basis."""
+    """a * b (degree m + n), as a convolution in the scaled Bernstein basis: term (i, j) is
+    (a_i C(m, i)) (b_j C(n, j)), three roundings (four where a binomial is itself rounded); the terms of one
+    coefficient are summed and divided by C(m + n, q)."""
     m, n = I[a, 0], I[b, 0]
     d = m + n
-    # per term: two binomial scalings and the product; the sum of up to min(m, n) + 1 terms; the division;
-    # one more where a binomial is itself rounded
-    depth = I[a, 1] + I[b, 1] + 3 + min(m, n) + 1 + 1 + (1 if d > EXACT_BINOMIALS else 0)
-    k = alloc(W, I, d, depth)
+    k = alloc(W, I, d)
     if k == 0:
         return 0
     dd = _dd(W)
+    u = _unit(W)
+    cnt = min(m, n) + 1
+    per_term = (4.0 if d > EXACT_BINOMIALS else 3.0) * u + cnt * u  # a term's roundings and its share of the sum
     for q in range(d + 1):
         W[k, 0, q] = 0.0
-        W[k, 1, q] = 0.0
+        W[k, 1, q] = 0.0  # first the propagated error and the terms' magnitudes, combined below
         if dd:
             W[k, 2, q] = 0.0
+    # the magnitudes of the terms go to the scratch's bound row
+    for q in range(d + 1):
+        W[0, 1, q] = 0.0
     for i in range(m + 1):
         bi = BINOMIALS[m, i]
+        ai = _coef(W, a, i)
+        ea = W[a, 1, i]
         for j in range(n + 1):
-            w = bi * BINOMIALS[n, j]
+            bj = BINOMIALS[n, j]
+            w = bi * bj
+            bv = _coef(W, b, j)
+            eb = W[b, 1, j]
             if dd:
                 ph, pl = dd_mul(W[a, 0, i], W[a, 2, i], W[b, 0, j], W[b, 2, j])
                 ph, pl = dd_mul_d(ph, pl, w)
                 W[k, 0, i + j], W[k, 2, i + j] = dd_add(W[k, 0, i + j], W[k, 2, i + j], ph, pl)
             else:
-                W[k, 0, i + j] += (W[a, 0, i] * bi) * (W[b, 0, j] * BINOMIALS[n, j])
-            W[k, 1, i + j] += (W[a, 1, i] * bi) * (W[b, 1, j] * BINOMIALS[n, j])
+                W[k, 0, i + j] += (W[a, 0, i] * bi) * (W[b, 0, j] * bj)
+            W[k, 1, i + j] += w * (abs(ai) * eb + abs(bv) * ea + ea * eb)
+            W[0, 1, i + j] += w * abs(ai * bv)
     for q in range(d + 1):
         if dd:
             W[k, 0, q], W[k, 2, q] = dd_div_d(W[k, 0, q], W[k, 2, q], BINOMIALS[d, q])
         else:
             W[k, 0, q] /= BINOMIALS[d, q]
-        W[k, 1, q] /= BINOMIALS[d, q]
+        err = (W[k, 1, q] + per_term * W[0, 1, q]) / BINOMIALS[d, q] + u * abs(_coef(W, k, q))
+        W[k, 1, q] = err * (UP + 4.0 * u)
     return k
 
 
@@ -323,30 +359,31 @@ def coefficients_into(W, I, k, out):
     """out[:n+1] = slot k's coefficients as doubles (hi + lo rounded once in a double-double workspace)."""
     n = I[k, 0]
     for i in range(n + 1):
-        out[i] = W[k, 0, i] + W[k, 2, i] if _dd(W) else W[k, 0, i]
+        out[i] = _coef(W, k, i)
 
 
 @_jit
 def error(W, I, k):
     """A bound of |computed - exact| of slot k (as its double coefficients) at every t in [0, 1], also after the
-    scanners restrict it to a piece or evaluate it: the program's rounding, bounded through the magnitudes, and
-    the scanners' own (10 roundings a degree) of coefficients no larger than these."""
+    scanners restrict it to a piece or evaluate it: the largest bound of a coefficient (plus, in double-double,
+    the rounding of each coefficient to one double) and the scanners' own rounding (10 a degree) of
+    coefficients no larger than these."""
     n = I[k, 0]
-    m = 0.0
+    e = 0.0
     c = 0.0
-    dd = _dd(W)
     for i in range(n + 1):
-        m = max(m, W[k, 1, i])
-        c = max(c, abs(W[k, 0, i] + W[k, 2, i] if dd else W[k, 0, i]))
-    built = I[k, 1] * DD_EPS * m + EPS * c if dd else gamma(I[k, 1]) * m
-    return (built + gamma(10 * n + 8) * (c + built)) * (1.0 + 1e-9)
+        e = max(e, W[k, 1, i])
+        c = max(c, abs(_coef(W, k, i)))
+    if _dd(W):
+        e += EPS * c
+    return (e + gamma(10 * n + 8) * (c + e)) * (1.0 + 1e-9)
 
 
 @_jit
 def is_zero(W, I, k):
-    """True when slot k is exactly the zero polynomial (every magnitude 0)."""
+    """True when slot k is exactly the zero polynomial (every coefficient and bound 0)."""
     for i in range(I[k, 0] + 1):
-        if W[k, 1, i] != 0.0:
+        if W[k, 1, i] != 0.0 or W[k, 0, i] != 0.0:
             return False
     return True
 
@@ -355,17 +392,13 @@ def is_zero(W, I, k):
 def value(W, I, k, t):
     """Value of slot k at t (Horner in t / (1 - t), as :func:`mjccd.bernstein.evaluate_row`)."""
     n = I[k, 0]
-    dd = _dd(W)
     if n == 0:
-        return W[k, 0, 0] + W[k, 2, 0] if dd else W[k, 0, 0]
+        return _coef(W, k, 0)
     flip = t > 0.5
     s = (1.0 - t) / t if flip else t / (1.0 - t)
-    first = 0 if flip else n
-    acc = W[k, 0, first] + W[k, 2, first] if dd else W[k, 0, first]
+    acc = _coef(W, k, 0 if flip else n)
     for j in range(n - 1, -1, -1):
-        idx = n - j if flip else j
-        c = W[k, 0, idx] + W[k, 2, idx] if dd else W[k, 0, idx]
-        acc = acc * s + BINOMIALS[n, j] * c
+        acc = acc * s + BINOMIALS[n, j] * _coef(W, k, n - j if flip else j)
     return acc * (t if flip else 1.0 - t) ** n
 
 

@@ -285,13 +285,12 @@ LEAF_S = 2.0 ** -30   # narrower boxes in s are not split in s
 
 
 @_jit
-def _restrict2(c, ds, nt, s0, s1, t0, t1, out):
+def _restrict2(c, ds, nt, s0, s1, t0, t1, out, col):
     """out[:ds+1, :nt+1] = the bivariate coefficients c (rows in s, columns in t) on a box containing
-    [s0, s1] x [t0, t1]; returns the box's real lower corner (s, t)."""
+    [s0, s1] x [t0, t1] (``col``: scratch of ds + 1); returns the box's real lower corner (s, t)."""
     tl = 0.0
     for i in range(ds + 1):
         tl = _restrict_coefficients(c[i], out[i, :nt + 1], t0, t1)
-    col = np.empty(ds + 1)
     sl = 0.0
     for k in range(nt + 1):
         for i in range(ds + 1):
@@ -374,17 +373,62 @@ def _pop(hs0, hs1, ht0, ht1, hm, n):
 
 
 @_jit
+def _point_proof(C, DS, DT, errs, s, t0, t1):
+    """A time in [t0, t1] at which every constraint is proven < 0 at this s, placed past the root in t of the
+    constraint largest at t1's left end (found by Newton on the univariate restriction to this s); -1 when
+    none is found."""
+    J = C.shape[0]
+    nt_max = 0
+    for j in range(J):
+        nt_max = max(nt_max, DT[j])
+    row = np.empty(nt_max + 1)
+    col = np.empty(5)
+    worst, which = -1e300, -1
+    for j in range(J):
+        v = _bvalue(C[j], DS[j], DT[j], s, t0)
+        if v - errs[j] > worst:
+            worst, which = v - errs[j], j
+    if worst < 0.0:
+        return t0
+    # the blocking constraint as a polynomial in t at this s: combine its rows with the Bernstein weights in s
+    ds, nt = DS[which], DT[which]
+    for k in range(nt + 1):
+        acc = 0.0
+        for i in range(ds + 1):
+            acc += P.BINOMIALS[ds, i] * s ** i * (1.0 - s) ** (ds - i) * C[which, i, k]
+        row[k] = acc
+    c = row[:nt + 1]
+    vb, _ = _value_slope(c, t1)
+    if not vb < 0.0:
+        return -1.0
+    r = _root_between(c, t0, t1)
+    _, slope = _value_slope(c, r)
+    width = 4.0 * EPS * r + 1e-300
+    if slope != 0.0:
+        width += 2.0 * errs[which] / abs(slope)
+    for _ in range(8):
+        t = min(r + width, t1)
+        if bholds_at(C, DS, DT, errs, s, t) == 1:
+            return t
+        width *= 4.0
+    return -1.0
+
+
+@_jit
 def bfirst_time(C, DS, DT, errs, t_end):
     """The first time in [0, t_end] at which some s in [0, 1] makes every bivariate constraint <= 0.
 
     ``C[j, :DS[j]+1, :DT[j]+1]``: constraint j's coefficients (rows in s,
     columns in t).  Boxes of (s, t) are taken earliest first from a heap;
-    each is discarded when a constraint is proven positive on it, clipped in
-    t to where the lower envelope over s of some constraint can reach zero
-    and in s likewise, and otherwise split; a box with every constraint
-    proven negative, or a point that proves them all negative, bounds the
-    answer from above.  Returns (lo, hi, t_estimate, band_end, s_estimate)
-    as :func:`first_time`, with the s of the point that proved contact.
+    each is discarded when a constraint is proven positive on it, and clipped
+    in t to where the lower envelope over s of every constraint can reach
+    zero, and in s likewise.  When clipping no longer moves the box's start,
+    the envelope over s is too loose: the box is halved in s (in t once it is
+    narrow in s).  A box with every constraint proven negative, or a point
+    proven so (placed past a Newton root along the box's middle s), bounds
+    the answer from above.  Returns (lo, hi, t_estimate, band_end,
+    s_estimate) as :func:`first_time`, with the s of the point that proved
+    contact.
     """
     J = C.shape[0]
     ds_max, nt_max = 0, 0
@@ -392,21 +436,24 @@ def bfirst_time(C, DS, DT, errs, t_end):
         ds_max = max(ds_max, DS[j])
         nt_max = max(nt_max, DT[j])
     buf = np.empty((J, ds_max + 1, nt_max + 1))
+    scol = np.empty(ds_max + 1)
     env = np.empty(max(ds_max, nt_max) + 1)
     hull = np.empty(max(ds_max, nt_max) + 1, dtype=np.int64)
     hs0, hs1 = np.empty(HEAP), np.empty(HEAP)
     ht0, ht1 = np.empty(HEAP), np.empty(HEAP)
     hm = np.empty(HEAP, dtype=np.int64)
     n = _push(hs0, hs1, ht0, ht1, hm, 0, 0.0, 1.0, 0.0, t_end, 0)
-    lo, hi, est, band_end, s_est = -1.0, -1.0, -1.0, -1.0, 0.5
+    hi, est, band_end, s_est = -1.0, -1.0, -1.0, 0.5
     leaf_lo = -1.0
     boxes = 0
-    overflow = False
     while n > 0:
         n = _pop(hs0, hs1, ht0, ht1, hm, n)
         s0, s1, t0, t1, mask = hs0[n], hs1[n], ht0[n], ht1[n], hm[n]
         if hi >= 0.0 and t0 >= hi:
+            n += 1  # put it back: it bounds what is left
             break
+        undecided = 0
+        infeasible = False
         while True:
             boxes += 1
             infeasible = False
@@ -418,7 +465,7 @@ def bfirst_time(C, DS, DT, errs, t_end):
                     continue
                 ds, nt = DS[j], DT[j]
                 box = buf[j]
-                sl, tl = _restrict2(C[j], ds, nt, s0, s1, t0, t1, box)
+                sl, tl = _restrict2(C[j], ds, nt, s0, s1, t0, t1, box, scol)
                 mn, mx = box[0, 0], box[0, 0]
                 for i in range(ds + 1):
                     for k in range(nt + 1):
@@ -461,35 +508,58 @@ def bfirst_time(C, DS, DT, errs, t_end):
                 break
         if infeasible:
             continue
-        sm = 0.5 * (s0 + s1)
-        if undecided == 0 or bholds_at(C, DS, DT, errs, sm, t0) == 1:
-            if hi < 0.0 or t0 < hi:
-                hi, s_est = t0, sm
+        if hi >= 0.0 and t0 >= hi:
             continue
-        if bholds_at(C, DS, DT, errs, sm, t1) == 1 and (hi < 0.0 or t1 < hi):
-            hi, s_est = t1, sm
+        sm = 0.5 * (s0 + s1)
+        if undecided == 0:
+            hi, s_est = t0, sm
+            continue
+        tp = _point_proof(C, DS, DT, errs, sm, t0, t1)
+        if tp >= 0.0 and (hi < 0.0 or tp < hi):
+            hi, s_est = tp, sm
+            t1 = min(t1, tp)
         if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= MAX_BOXES or n + 2 > HEAP:
             if leaf_lo < 0.0 or t0 < leaf_lo:
                 leaf_lo = t0
                 est = 0.5 * (t0 + t1)
             band_end = max(band_end, t1)
-            overflow = overflow or boxes >= MAX_BOXES or n + 2 > HEAP
             continue
-        if t1 - t0 > LEAF and (s1 - s0 <= LEAF_S or (t1 - t0) * 64.0 > (s1 - s0)):
-            tm = 0.5 * (t0 + t1)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
-        else:
+        # split the direction along which the coefficients of the undecided constraints vary most: in s when
+        # the envelope over s is what keeps the box from being clipped away
+        vs, vt = 0.0, 0.0
+        for j in range(J):
+            if (mask >> j) & 1:
+                continue
+            box = buf[j]
+            for k in range(DT[j] + 1):
+                lo_, hi_ = box[0, k], box[0, k]
+                for i in range(1, DS[j] + 1):
+                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+                vs = max(vs, hi_ - lo_)
+            for i in range(DS[j] + 1):
+                lo_, hi_ = box[i, 0], box[i, 0]
+                for k in range(1, DT[j] + 1):
+                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+                vt = max(vt, hi_ - lo_)
+        if s1 - s0 > LEAF_S and (vs > vt or t1 - t0 <= LEAF):
             smid = 0.5 * (s0 + s1)
             n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
             n = _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
+        else:
+            tm = 0.5 * (t0 + t1)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
     # the earliest box left unresolved bounds the answer from below
     lo = leaf_lo
-    if n > 0 and (hi < 0.0 or ht0[0] < hi):
-        lo = ht0[0] if lo < 0.0 else min(lo, ht0[0])
+    if n > 0:
+        first = ht0[0]
+        for q in range(n):
+            first = min(first, ht0[q])
+        if hi < 0.0 or first < hi:
+            lo = first if lo < 0.0 else min(lo, first)
     if hi >= 0.0 and (lo < 0.0 or lo > hi):
         lo = hi
-    if lo >= 0.0 and est < 0.0:
+    if lo >= 0.0 and (est < 0.0 or est < lo):
         est = lo if hi < 0.0 else 0.5 * (lo + hi)
     if hi >= 0.0 and est > hi:
         est = 0.5 * (lo + hi)

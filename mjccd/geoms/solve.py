@@ -31,10 +31,11 @@ _local = threading.local()  # each thread's workspaces: concurrent calls never s
 
 
 def _workspaces():
-    """This thread's double and double-double workspaces (made on first use)."""
+    """This thread's double and double-double workspaces and system store (made on first use)."""
     ws = getattr(_local, "workspaces", None)
     if ws is None:
-        ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True))
+        ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True),
+                                  *sy.new_store(1024, 8192))
     return ws
 
 
@@ -180,8 +181,7 @@ def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
         raise InputError("b.shape: two planes are not a pair MuJoCo collides")
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
     out = np.empty(kn.OUT)
-    W, I, Wdd, Idd = _workspaces()
-    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), W, I, Wdd, Idd, out)
+    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), *_workspaces(), out)
     if out[kn.FAILED] == kn.OVERFLOW:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace (a chain too deep for its degree limit {P.MAX_DEGREE})")

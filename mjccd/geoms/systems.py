@@ -53,7 +53,6 @@ WIT = 8                                       # first witness slot column of SYS
 # ---------------------------------------------------------------- the system store
 
 
-@_jit
 def new_store(max_systems, max_constraints):
     """Empty system arrays: CON, SYS, SYSR, counts N = [constraints, systems, overflow]."""
     return (np.zeros((max_constraints, 6), dtype=np.int64), np.zeros((max_systems, SYS_FIELDS), dtype=np.int64),
@@ -172,6 +171,36 @@ def _bilinear(W, I, qk, prm, U, V):
         term = P.mul(W, I, du, dv)
         acc = term if acc < 0 else P.add(W, I, acc, term, 1.0)
     return P.add(W, I, acc, P.mul(W, I, _radius_times(W, I, U[3], prm), _radius_times(W, I, V[3], prm)), -1.0)
+
+
+@_jit
+def _tangency(W, I, qk, qp, p0, d):
+    """alpha gamma - beta^2 of the quadric along the segment p0 + s d (d of weight 0), written by Lagrange's
+    identity as |u x d|^2 - R^2 w^2 |d|^2 (u = p0 - e w, in the quadric's own metric): the same polynomial,
+    without the cancellation of two products of squares near a tangency."""
+    axis = int(qp[0]) if qk == AXCYL else -1
+    u = np.empty(3, dtype=np.int64)
+    v = np.empty(3, dtype=np.int64)
+    for i in range(3):
+        if qk == ELLIPSOIDAL:
+            u[i] = P.frac(W, I, p0[i], 1.0, qp[1 + i])
+            v[i] = P.frac(W, I, d[i], 1.0, qp[1 + i])
+        else:
+            u[i] = p0[i] if qp[1 + i] == 0.0 else P.add(W, I, p0[i], p0[3], -qp[1 + i])
+            v[i] = d[i]
+    if axis >= 0:  # the two coordinates across the axis: a 2-d cross product
+        j, k = (axis + 1) % 3, (axis + 2) % 3
+        cross2 = P.sq(W, I, P.add(W, I, P.mul(W, I, u[j], v[k]), P.mul(W, I, u[k], v[j]), -1.0))
+        d2 = P.add(W, I, P.sq(W, I, v[j]), P.sq(W, I, v[k]), 1.0)
+    else:
+        cross2 = -1
+        for j in range(3):
+            k, l = (j + 1) % 3, (j + 2) % 3
+            c = P.sq(W, I, P.add(W, I, P.mul(W, I, u[k], v[l]), P.mul(W, I, u[l], v[k]), -1.0))
+            cross2 = c if cross2 < 0 else P.add(W, I, cross2, c, 1.0)
+        d2 = P.dot3(W, I, v[0], v[1], v[2], v[0], v[1], v[2])
+    rw = p0[3] if qk == ELLIPSOIDAL else _radius_times(W, I, p0[3], qp)
+    return P.add(W, I, cross2, P.mul(W, I, P.sq(W, I, rw), d2), -1.0)
 
 
 @_jit
@@ -324,7 +353,7 @@ def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, qk, qp, lins, nlin, side, 
             c2 = P.add(W, I, P.scale(W, I, be, 2.0), ga, 1.0)  # q(1) <= alpha
             if _may_be_negative(W, I, c1) and _may_be_negative(W, I, c2) and _may_be_negative(W, I, be):
                 c3 = P.scale(W, I, P.add(W, I, al, be, 1.0), -1.0)  # -beta <= alpha: the vertex before the end
-                disc = P.add(W, I, P.mul(W, I, al, ga), P.sq(W, I, be), -1.0)  # alpha gamma - beta^2 <= 0
+                disc = _tangency(W, I, qk, qp, p0, d)  # alpha gamma - beta^2 <= 0, as a cross product
                 mb = P.scale(W, I, be, -1.0)
                 wit = _combine(W, I, al, p0, mb, d)
                 lv = np.empty(MAXLIN, dtype=np.int64)

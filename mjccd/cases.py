@@ -22,6 +22,8 @@ import numpy as np
 from mjccd import _validate, interrupts
 from mjccd.ccd import PACKED_HEAD, _needs_exact, solve_pair, two_pose_batch
 from mjccd.errors import InputError
+from mjccd.geoms.shapes import shape_from_json
+from mjccd.geoms.solve import geom_collision_intervals, geom_first_contact
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Rational, Rigid,
                           Slide, Static)
 from mjccd.quadric import STATUS_NAMES, Ellipsoid
@@ -204,15 +206,53 @@ def motion_from_json(d, field):
 
 
 def _body(case, key):
+    """(shape, motion, is a MuJoCo shape) of body ``key``: ``"radii"`` for an ellipsoid, or a ``"shape"``."""
     body = _require(case, key, "case")
+    if "shape" in _object(body, key):
+        if "radii" in body:
+            raise CaseError(f"{key}: give either 'radii' or 'shape', not both")
+        shape = shape_from_json(body["shape"], f"{key}.shape")
+        return shape, motion_from_json(_require(body, "motion", key), f"{key}.motion"), True
     radii = _validate.radii(_numbers(_require(body, "radii", key), 1, f"{key}.radii"), f"{key}.radii")
-    return Ellipsoid(radii), motion_from_json(_require(body, "motion", key), f"{key}.motion")
+    return Ellipsoid(radii), motion_from_json(_require(body, "motion", key), f"{key}.motion"), False
+
+
+def _geom_result(a, ma, b, mb):
+    """Result dict of a case with a MuJoCo shape (:mod:`mjccd.geoms`)."""
+    contact = geom_first_contact(a, ma, b, mb)
+    intervals, intervals_certified = geom_collision_intervals(a, ma, b, mb)
+    status = "separate" if contact is None else contact.status_at_start
+    point = None if contact is None or contact.point is None or contact.time == 0.0 else \
+        [float(x) for x in contact.point]
+    # the first contact and the intervals are certified apart: an interval's end can stay in a bracket wider than
+    # 1e-9 (where the overlap shrinks to a point at a rim, docs/method.md) while the first contact is proven
+    certain = contact is None or contact.certainty == "certified"
+    if contact is None and not intervals_certified and intervals:
+        certain = False  # nothing proven, but an interval may hold a graze: every possible first contact is in it
+    result = {"status_at_start": status,
+              "first_contact": None if contact is None else float(contact.time),
+              "intervals": [[t0, t1] for t0, t1 in intervals],
+              "contact_point": point,
+              "certainty": "certified" if certain else "uncertain",
+              "intervals_certainty": "certified" if intervals_certified else "uncertain"}
+    if contact is not None and contact.elements is not None and contact.time > 0.0:
+        result["elements"] = list(contact.elements)
+    if not certain:
+        if contact is None:  # a possible graze somewhere in the intervals
+            lo = intervals[0][0] if intervals else 0.0
+            result["first_contact"] = lo
+            result["first_contact_bracket"] = [lo, intervals[-1][1] if intervals else 1.0]
+        else:
+            result["first_contact_bracket"] = [float(x) for x in (contact.bracket or (contact.time, contact.time))]
+    return result
 
 
 def solve_case(case):
     """Result dict of one case (raises InputError naming the field for bad input)."""
-    a, ma = _body(case, "a")
-    b, mb = _body(case, "b")
+    a, ma, shaped_a = _body(case, "a")
+    b, mb, shaped_b = _body(case, "b")
+    if shaped_a or shaped_b:
+        return _geom_result(a, ma, b, mb)
     status, contact, intervals = solve_pair(a, ma, b, mb)
     point = None
     if contact is not None and contact.point is not None:

@@ -286,3 +286,85 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
                 _contact(Wt, It, SYS, SYSR, best, s_best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],
                          ka, sa, FA, kb, sb, FB, out)
             return
+
+
+MAX_RUNS = 64
+
+
+@_jit
+def merge_runs(R, n, t_end, out):
+    """Merge runs (rows enter_lo, enter_hi, exit_lo, exit_hi, proven) of several systems into the pair's
+    intervals of contact: rows (t_in, t_out, in_lo, in_hi, out_lo, out_hi, proven) in ``out``; returns (count,
+    certified).  Runs that overlap, or lie within TIME_TOL of each other, are one interval; the interval is
+    certified when both its ends' brackets are within TIME_TOL and some run in it is proven."""
+    order = np.argsort(R[:n, 0])
+    m = 0
+    certified = True
+    k = 0
+    while k < n:
+        r = order[k]
+        lo_in, lo_out = R[r, 0], R[r, 3]
+        hi_in = R[r, 1] if R[r, 4] > 0.0 else 2.0
+        hi_out = R[r, 2] if R[r, 4] > 0.0 else -1.0
+        proven = R[r, 4] > 0.0
+        k += 1
+        while k < n and R[order[k], 0] <= lo_out + TIME_TOL:
+            q = order[k]
+            lo_out = max(lo_out, R[q, 3])
+            if R[q, 4] > 0.0:
+                hi_in = min(hi_in, R[q, 1])
+                hi_out = max(hi_out, R[q, 2])
+                proven = True
+            k += 1
+        if m < out.shape[0]:
+            out[m, 2], out[m, 5] = lo_in, lo_out
+            out[m, 3] = hi_in if proven else lo_out
+            out[m, 4] = hi_out if proven else lo_in
+            out[m, 6] = 1.0 if proven else 0.0
+            out[m, 0] = 0.5 * (out[m, 2] + out[m, 3])
+            out[m, 1] = 0.5 * (out[m, 4] + out[m, 5]) if out[m, 5] < t_end else t_end
+            if lo_in == 0.0:
+                out[m, 0] = 0.0
+            if not proven or out[m, 3] - out[m, 2] > TIME_TOL or (out[m, 5] < t_end and out[m, 5] - out[m, 4] > TIME_TOL):
+                certified = False
+            m += 1
+        else:
+            certified = False
+    return m, certified
+
+
+@_jit
+def pair_runs(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
+    """Every interval of [0, t_end] in which the pair is in contact (touching or overlapping), as rows of
+    :func:`merge_runs` in ``out`` (MAX_RUNS, 7).  Returns (count, certified, status at t = 0, code): code as
+    :func:`mjccd.geoms.systems.build_pair` (-1: overflow).  Tries doubles, then double-double when the
+    intervals are not certified."""
+    count, certified, status0, code = 0, False, 1, 0
+    for tier in range(2):
+        Wt, It = (W, I) if tier == 0 else (Wdd, Idd)
+        FA, FB, C, DS, DT, errs, code = _systems_of(Wt, It, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b)
+        if code <= 0:
+            return 0, False, 1, code
+        R = np.empty((N[1] * 8 + 8, sc.RUN_FIELDS))
+        n = 0
+        part = np.empty((MAX_RUNS, sc.RUN_FIELDS))
+        status0 = 1
+        for k in range(N[1]):
+            s0, cnt = SYS[k, 0], SYS[k, 1]
+            if SYS[k, 3] == 0:
+                cc = np.ascontiguousarray(C[s0:s0 + cnt, 0, :])
+                st = sc.status_at_start(cc, errs[s0:s0 + cnt])
+                m = sc.all_runs(cc, DT[s0:s0 + cnt], errs[s0:s0 + cnt], t_end, part)
+            else:
+                st = _bstatus_at_start(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt])
+                m = sc.ball_runs(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt], t_end, part)
+            status0 = min(status0, st)  # overlapping (-1) before touching (0) before separate (1)
+            for q in range(m):
+                if n < R.shape[0]:
+                    for f in range(sc.RUN_FIELDS):
+                        R[n, f] = part[q, f]
+                    n += 1
+        count, certified = merge_runs(R, n, t_end, out)
+        if certified:
+            break
+    return count, certified, status0, code

@@ -564,3 +564,329 @@ def bfirst_time(C, DS, DT, errs, t_end):
     if hi >= 0.0 and est > hi:
         est = 0.5 * (lo + hi)
     return lo, hi, est, band_end, s_est
+
+
+# ---------------------------------------------------------------- every run of time a system holds
+
+INF, UND, FEAS = 1, 0, -1   # labels of pieces of time: proven not to hold, undecided, proven to hold
+RUN_FIELDS = 5              # enter_lo, enter_hi, exit_lo, exit_hi, proven (1: some time inside is proven)
+MAX_SEGMENTS = 4096
+
+
+@_jit
+def _emit(seg, nseg, a, b, label):
+    """Append the piece [a, b] with its label, merging it into the previous one when they agree."""
+    if b < a:
+        return nseg
+    if nseg > 0 and seg[nseg - 1, 2] == label and seg[nseg - 1, 1] >= a:
+        seg[nseg - 1, 1] = max(seg[nseg - 1, 1], b)
+        return nseg
+    if nseg >= seg.shape[0]:
+        seg[nseg - 1, 1] = max(seg[nseg - 1, 1], b)  # out of room: the rest is undecided
+        seg[nseg - 1, 2] = UND
+        return nseg
+    seg[nseg, 0], seg[nseg, 1], seg[nseg, 2] = a, b, label
+    return nseg + 1
+
+
+@_jit
+def runs_of(seg, nseg, t_end, out):
+    """Runs of time not proven free (rows of ``out``, RUN_FIELDS each) from labelled pieces in time order;
+    returns their number."""
+    n = 0
+    k = 0
+    while k < nseg:
+        if seg[k, 2] == INF:
+            k += 1
+            continue
+        enter_lo = seg[k, 0]
+        enter_hi, exit_lo = -1.0, -1.0
+        end = seg[k, 1]
+        while k < nseg and seg[k, 2] != INF:
+            if seg[k, 2] == FEAS:
+                if enter_hi < 0.0:
+                    enter_hi = seg[k, 0]
+                exit_lo = seg[k, 1]
+            end = seg[k, 1]
+            k += 1
+        if n < out.shape[0]:
+            proven = enter_hi >= 0.0
+            out[n, 0] = enter_lo
+            out[n, 1] = enter_hi if proven else end
+            out[n, 2] = exit_lo if proven else enter_lo
+            out[n, 3] = end if k < nseg else t_end
+            out[n, 4] = 1.0 if proven else 0.0
+            n += 1
+    return n
+
+
+@_jit
+def all_runs(C, D, errs, t_end, out):
+    """Every run of time in [0, t_end] in which the univariate system may hold, as :func:`runs_of` rows; pieces
+    are clipped, split around the roots of a lone undecided constraint (entering or leaving) and halved, as in
+    :func:`first_time`, but none is skipped."""
+    J = C.shape[0]
+    nmax = 0
+    for j in range(J):
+        nmax = max(nmax, D[j])
+    buf = np.empty((J, nmax + 1))
+    hull = np.empty(nmax + 1, dtype=np.int64)
+    seg = np.empty((MAX_SEGMENTS, 3))
+    nseg = 0
+    sa = np.empty(STACK)
+    sb = np.empty(STACK)
+    sm = np.empty(STACK, dtype=np.int64)
+    top = 1
+    sa[0], sb[0], sm[0] = 0.0, t_end, 0
+    pieces = 0
+    while top > 0:
+        top -= 1
+        a, b, mask = sa[top], sb[top], sm[top]
+        if mask < 0:  # a part a clip proved free, emitted in its turn
+            nseg = _emit(seg, nseg, a, b, INF)
+            continue
+        forced = (mask & FORCED) != 0
+        pieces += 1
+        infeasible = False
+        undecided = 0
+        which = -1
+        alpha, beta = 0.0, 1.0
+        left = 0.0
+        for j in range(J):
+            if (mask >> j) & 1:
+                continue
+            row = buf[j, :D[j] + 1]
+            left = _restrict_coefficients(C[j], row, a, b)
+            mn = row.min()
+            mx = row.max()
+            if mn > errs[j]:
+                infeasible = True
+                break
+            if mx < -errs[j]:
+                mask |= 1 << j
+                continue
+            undecided += 1
+            which = j
+            al, be = _sublevel(row, errs[j], hull)
+            alpha = max(alpha, al)
+            beta = min(beta, be)
+        if infeasible or alpha > beta:
+            nseg = _emit(seg, nseg, a, b, INF)
+            continue
+        if undecided == 0:
+            nseg = _emit(seg, nseg, a, b, FEAS)
+            continue
+        if forced or b - a <= LEAF or pieces >= MAX_PIECES or top + 4 > STACK:
+            nseg = _emit(seg, nseg, a, b, UND)
+            continue
+        w = b - left
+        na = max(left + max(alpha - 1e-12, 0.0) * w, a)
+        nb = min(left + min(beta + 1e-12, 1.0) * w, b)
+        if nb - na < SHRINK * (b - a):  # emit the left part now, the right part after the rest
+            if na > a:
+                nseg = _emit(seg, nseg, a, na, INF)
+            if nb < b:
+                sa[top], sb[top], sm[top] = nb, b, -1
+                top += 1
+            sa[top], sb[top], sm[top] = na, nb, mask
+            top += 1
+            continue
+        split = False
+        if undecided == 1:
+            c = C[which, :D[which] + 1]
+            va, _ = _value_slope(c, a)
+            vb, _ = _value_slope(c, b)
+            if (va > 0.0) != (vb > 0.0) and va != 0.0 and vb != 0.0:
+                r = _root_between(c, a, b)
+                _, slope = _value_slope(c, r)
+                width = 4.0 * EPS * r + 1e-300
+                if slope != 0.0:
+                    width += 1.5 * errs[which] / abs(slope)
+                if a < r - width and r + width < b and 2.0 * width < 0.25 * (b - a):
+                    sa[top], sb[top], sm[top] = r + width, b, mask
+                    sa[top + 1], sb[top + 1], sm[top + 1] = r - width, r + width, mask | FORCED
+                    sa[top + 2], sb[top + 2], sm[top + 2] = a, r - width, mask
+                    top += 3
+                    split = True
+        if not split:
+            mid = 0.5 * (a + b)
+            sa[top], sb[top], sm[top] = mid, b, mask
+            sa[top + 1], sb[top + 1], sm[top + 1] = a, mid, mask
+            top += 2
+    return runs_of(seg, nseg, t_end, out)
+
+
+@_jit
+def _covered(cov, ncov, t0, t1):
+    """True when [t0, t1] lies in one of the intervals cov[:ncov] (times proven to hold)."""
+    for q in range(ncov):
+        if cov[q, 0] <= t0 and t1 <= cov[q, 1]:
+            return True
+    return False
+
+
+@_jit
+def _cover(cov, ncov, t0, t1):
+    """Add [t0, t1] to the intervals proven to hold (merged with those it meets)."""
+    for q in range(ncov):
+        if cov[q, 0] <= t1 and t0 <= cov[q, 1]:
+            cov[q, 0] = min(cov[q, 0], t0)
+            cov[q, 1] = max(cov[q, 1], t1)
+            return ncov
+    if ncov < cov.shape[0]:
+        cov[ncov, 0], cov[ncov, 1] = t0, t1
+        return ncov + 1
+    return ncov
+
+
+@_jit
+def ball_runs(C, DS, DT, errs, t_end, out):
+    """Every run of time in [0, t_end] in which some s in [0, 1] may satisfy the bivariate system, as
+    :func:`runs_of` rows.  Boxes as in :func:`bfirst_time`, all of them, except those whose times are already
+    proven to hold (by a box where every constraint is negative, or a point proof); the times of the boxes
+    left undecided, and those proven, are then swept in order."""
+    J = C.shape[0]
+    ds_max, nt_max = 0, 0
+    for j in range(J):
+        ds_max = max(ds_max, DS[j])
+        nt_max = max(nt_max, DT[j])
+    buf = np.empty((J, ds_max + 1, nt_max + 1))
+    scol = np.empty(ds_max + 1)
+    env = np.empty(max(ds_max, nt_max) + 1)
+    hull = np.empty(max(ds_max, nt_max) + 1, dtype=np.int64)
+    hs0, hs1 = np.empty(HEAP), np.empty(HEAP)
+    ht0, ht1 = np.empty(HEAP), np.empty(HEAP)
+    hm = np.empty(HEAP, dtype=np.int64)
+    cov = np.empty((256, 2))
+    ncov = 0
+    und = np.empty((MAX_SEGMENTS, 2))
+    nund = 0
+    n = _push(hs0, hs1, ht0, ht1, hm, 0, 0.0, 1.0, 0.0, t_end, 0)
+    boxes = 0
+    while n > 0:
+        n = _pop(hs0, hs1, ht0, ht1, hm, n)
+        s0, s1, t0, t1, mask = hs0[n], hs1[n], ht0[n], ht1[n], hm[n]
+        if _covered(cov, ncov, t0, t1):
+            continue
+        boxes += 1
+        infeasible = False
+        undecided = 0
+        a_t, b_t, a_s, b_s = 0.0, 1.0, 0.0, 1.0
+        sl, tl = 0.0, 0.0
+        for j in range(J):
+            if (mask >> j) & 1:
+                continue
+            box = buf[j]
+            sl, tl = _restrict2(C[j], DS[j], DT[j], s0, s1, t0, t1, box, scol)
+            mn, mx = box[0, 0], box[0, 0]
+            for i in range(DS[j] + 1):
+                for k in range(DT[j] + 1):
+                    mn = min(mn, box[i, k])
+                    mx = max(mx, box[i, k])
+            if mn > errs[j]:
+                infeasible = True
+                break
+            if mx < -errs[j]:
+                mask |= 1 << j
+                continue
+            undecided += 1
+            for k in range(DT[j] + 1):
+                m = box[0, k]
+                for i in range(1, DS[j] + 1):
+                    m = min(m, box[i, k])
+                env[k] = m
+            al, be = _sublevel(env[:DT[j] + 1], errs[j], hull)
+            a_t, b_t = max(a_t, al), min(b_t, be)
+            for i in range(DS[j] + 1):
+                m = box[i, 0]
+                for k in range(1, DT[j] + 1):
+                    m = min(m, box[i, k])
+                env[i] = m
+            al, be = _sublevel(env[:DS[j] + 1], errs[j], hull)
+            a_s, b_s = max(a_s, al), min(b_s, be)
+        if infeasible or a_t > b_t or a_s > b_s:
+            continue
+        if undecided == 0:
+            ncov = _cover(cov, ncov, t0, t1)
+            continue
+        sm = 0.5 * (s0 + s1)
+        if bholds_at(C, DS, DT, errs, sm, t0) == 1:
+            ncov = _cover(cov, ncov, t0, t0)
+        wt, ws = t1 - tl, s1 - sl
+        nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
+        nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
+        ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
+        ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
+        if (nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0):
+            n = _push(hs0, hs1, ht0, ht1, hm, n, ns0, ns1, nt0, nt1, mask)
+            continue
+        if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= MAX_BOXES or n + 2 > HEAP:
+            if nund < und.shape[0]:
+                und[nund, 0], und[nund, 1] = t0, t1
+                nund += 1
+            continue
+        vs, vt = 0.0, 0.0
+        for j in range(J):
+            if (mask >> j) & 1:
+                continue
+            box = buf[j]
+            for k in range(DT[j] + 1):
+                lo_, hi_ = box[0, k], box[0, k]
+                for i in range(1, DS[j] + 1):
+                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+                vs = max(vs, hi_ - lo_)
+            for i in range(DS[j] + 1):
+                lo_, hi_ = box[i, 0], box[i, 0]
+                for k in range(1, DT[j] + 1):
+                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+                vt = max(vt, hi_ - lo_)
+        if s1 - s0 > LEAF_S and (vs > vt or t1 - t0 <= LEAF):
+            smid = 0.5 * (s0 + s1)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
+        else:
+            tm = 0.5 * (t0 + t1)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
+            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
+    for q in range(n):  # boxes the limits left unexamined are undecided
+        if nund < und.shape[0]:
+            und[nund, 0], und[nund, 1] = ht0[q], ht1[q]
+            nund += 1
+    # sweep: a time is proven to hold when covered, undecided when in an undecided box, else free
+    pts = np.empty(2 * (ncov + nund) + 2)
+    npt = 0
+    pts[npt] = 0.0
+    pts[npt + 1] = t_end
+    npt += 2
+    for q in range(ncov):
+        pts[npt], pts[npt + 1] = cov[q, 0], cov[q, 1]
+        npt += 2
+    for q in range(nund):
+        pts[npt], pts[npt + 1] = und[q, 0], und[q, 1]
+        npt += 2
+    pts = np.sort(pts[:npt])
+    seg = np.empty((MAX_SEGMENTS, 3))
+    nseg = 0
+    for q in range(npt):
+        t = pts[q]
+        label = INF
+        for c in range(ncov):
+            if cov[c, 0] <= t <= cov[c, 1]:
+                label = FEAS
+        if label == INF:
+            for c in range(nund):
+                if und[c, 0] <= t <= und[c, 1]:
+                    label = UND
+        nseg = _emit(seg, nseg, t, t, label)
+        if q + 1 < npt and pts[q + 1] > t:
+            m = 0.5 * (t + pts[q + 1])
+            label = INF
+            for c in range(ncov):
+                if cov[c, 0] <= m <= cov[c, 1]:
+                    label = FEAS
+            if label == INF:
+                for c in range(nund):
+                    if und[c, 0] <= m <= und[c, 1]:
+                        label = UND
+            nseg = _emit(seg, nseg, t, pts[q + 1], label)
+    return runs_of(seg, nseg, t_end, out)

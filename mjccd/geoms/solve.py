@@ -13,7 +13,7 @@ import threading
 
 import numpy as np
 
-from mjccd.ccd import Contact, first_contact
+from mjccd.ccd import Contact, first_contact, solve_motions
 from mjccd.errors import InputError, InputTypeError
 from mjccd.geoms import contact as ct
 from mjccd.geoms import frames as fr
@@ -22,7 +22,7 @@ from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
 from mjccd.geoms.shapes import kind_and_size
 from mjccd.motion import Ball, Chain, Fixed, Free, Hinge, Motion, Rigid, Slide, Static
-from mjccd.plane import Plane, plane_first_contact
+from mjccd.plane import Plane, plane_first_contact, solve_plane
 from mjccd.quadric import Ellipsoid, quat_to_matrix
 
 SLOTS = 16384  # polynomials of one pair query (a box against a box needs about 3,600)
@@ -221,3 +221,60 @@ def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     if out[kn.FAILED] == kn.PARTIAL:
         contacts.append(_kernel_contact(out, ka, kb))
     return _earliest(contacts)
+
+
+def _other_intervals(shape_a, motion_a, shape_b, motion_b, ka, sa, kb, sb):
+    """(intervals, certified) the ellipsoid and plane solvers owe for this pair: lists of (t_in, t_out)."""
+    if ka > kb:
+        shape_a, motion_a, shape_b, motion_b = shape_b, motion_b, shape_a, motion_a
+        ka, sa, kb, sb = kb, sb, ka, sa
+    if kb == sy.PLANE:
+        sol = solve_plane(_ellipsoid_shape(ka, sa), motion_a, _plane_of(motion_b))
+        return [tuple(map(float, iv)) for iv in sol.intervals], bool(sol.certified)
+    if ka == sy.CAPSULE:
+        out, ok = [], True
+        for h in (sa[1], -sa[1]):
+            sol = solve_motions(Ellipsoid([sa[0]] * 3), _end_ball_motion(motion_a, h), _ellipsoid_shape(kb, sb),
+                                motion_b)
+            out += [tuple(map(float, iv)) for iv in sol.intervals]
+            ok = ok and bool(sol.certified)
+        return out, ok
+    sol = solve_motions(_ellipsoid_shape(ka, sa), motion_a, _ellipsoid_shape(kb, sb), motion_b)
+    return [tuple(map(float, iv)) for iv in sol.intervals], bool(sol.certified)
+
+
+def _union(intervals):
+    """The union of closed intervals, as a sorted list of disjoint ones (touching within 1e-9 joined)."""
+    out = []
+    for lo, hi in sorted(intervals):
+        if out and lo <= out[-1][1] + kn.TIME_TOL:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def geom_collision_intervals(shape_a, motion_a, shape_b, motion_b):
+    """Every interval of normalised time in [0, 1] in which the two shapes touch or overlap.
+
+    Returns (intervals, certified): a list of (t_in, t_out) and whether
+    every end is proven within 1e-9 (otherwise an interval may be a graze
+    that does not happen, or ends may be wider apart).
+    """
+    ka, sa, ra = _check(shape_a, motion_a, "a")
+    kb, sb, rb = _check(shape_b, motion_b, "b")
+    if ka == sy.PLANE and kb == sy.PLANE:
+        raise InputError("b.shape: two planes are not a pair MuJoCo collides")
+    origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
+    out = np.empty((kn.MAX_RUNS, 7))
+    count, certified, _, code = kn.pair_runs(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), 1.0,
+                                             *_workspaces(), out)
+    if code < 0:
+        raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
+                           f"workspace")
+    intervals = [(float(out[k, 0]), float(out[k, 1])) for k in range(count)]
+    if code != sy.HANDLED:
+        other, ok = _other_intervals(shape_a, motion_a, shape_b, motion_b, ka, sa, kb, sb)
+        intervals = _union(intervals + other) if code == sy.PARTIAL else _union(other)
+        certified = (certified or code == 0) and ok
+    return intervals, bool(certified)

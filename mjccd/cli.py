@@ -80,7 +80,8 @@ DELEGATED = {
     "warmup": ("mjccd.warmup", "compile every kernel now (numba caches them), one line per job"),
 }
 BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monitor": "mjccd.bench.monitor",
-                "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity", "batch": "mjccd.bench.batch"}
+                "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity", "batch": "mjccd.bench.batch",
+                "geoms": "mjccd.bench.geoms"}
 
 
 def _choose_gl_backend():

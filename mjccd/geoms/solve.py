@@ -30,8 +30,9 @@ STATUS_NAMES = {1: "separate", 0: "touching", -1: "overlapping"}
 _local = threading.local()  # each thread's workspaces: concurrent calls never share one
 
 
-def _workspaces():
-    """This thread's double and double-double workspaces and system store (made on first use)."""
+def workspaces():
+    """This thread's double and double-double workspaces and system store (made on first use): the last
+    arguments of :func:`mjccd.geoms.kernel.pair_kernel`."""
     ws = getattr(_local, "workspaces", None)
     if ws is None:
         ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True),
@@ -181,7 +182,7 @@ def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
         raise InputError("b.shape: two planes are not a pair MuJoCo collides")
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
     out = np.empty(kn.OUT)
-    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), *_workspaces(), out)
+    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), *workspaces(), out)
     if out[kn.FAILED] == kn.OVERFLOW:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace (a chain too deep for its degree limit {P.MAX_DEGREE})")
@@ -268,7 +269,7 @@ def geom_collision_intervals(shape_a, motion_a, shape_b, motion_b):
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
     out = np.empty((kn.MAX_RUNS, 7))
     count, certified, _, code = kn.pair_runs(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), 1.0,
-                                             *_workspaces(), out)
+                                             *workspaces(), out)
     if code < 0:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace")

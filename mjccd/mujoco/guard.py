@@ -269,12 +269,15 @@ class GuardedStepper:
         energy_tolerance: a split step whose mechanical energy rose by more than this fraction of the
             kinetic energy involved, beyond the work of actuators and applied forces, is reported with
             ``energy_gain`` (see :class:`GuardReport`).
+        mode: what is guarded, as in :class:`~mjccd.mujoco.CCDMonitor`: the geoms themselves (the default with
+            the rigid motion) or their ellipsoids; ``max_penetration`` applies to ellipsoids only.
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=32,
-                 overshoot=1e-3, contact_step=0.05, max_penetration=0.25, on_clamp=None, energy_tolerance=0.05):
+                 overshoot=1e-3, contact_step=0.05, max_penetration=0.25, on_clamp=None, energy_tolerance=0.05,
+                 mode=None):
         self.monitor = CCDMonitor(model, data, ellipsoids, pairs=pairs, motion=motion,
-                                  report_overlapping=False)
+                                  report_overlapping=False, mode=mode)
         self.max_rechecks = _positive(max_rechecks, "max_rechecks", integer=True, allow_zero=True)
         self.overshoot = _positive(overshoot, "overshoot")
         if self.overshoot >= 1.0:
@@ -665,7 +668,7 @@ class GuardedWrapper(DelegatingEnvironment):
     Args:
         env: a ``dm_control.rl.control.Environment``.
         ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
-        pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp: as in
+        pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp, mode: as in
             :class:`GuardedStepper`.
 
     ``last_reports`` holds the :class:`GuardReport` of every substep of the last control step and
@@ -675,7 +678,7 @@ class GuardedWrapper(DelegatingEnvironment):
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", max_rechecks=32, overshoot=1e-3,
-                 contact_step=0.05, max_penetration=0.25, on_clamp=None, per="body"):
+                 contact_step=0.05, max_penetration=0.25, on_clamp=None, per="body", mode=None):
         super().__init__(env)
         physics = env.physics
         model = physics.model.ptr
@@ -683,7 +686,7 @@ class GuardedWrapper(DelegatingEnvironment):
         self.stepper = GuardedStepper(model, physics.data.ptr, ellipsoids, pairs=pairs, motion=motion,
                                       max_rechecks=max_rechecks, overshoot=overshoot,
                                       contact_step=contact_step, max_penetration=max_penetration,
-                                      on_clamp=on_clamp)
+                                      on_clamp=on_clamp, mode=mode)
         self.last_reports = []
         self.last_unstable = False
 

@@ -29,14 +29,14 @@ class CCDGymWrapper(gymnasium.Wrapper):
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True, per="body", planes=True):
+                 all_pairs=False, report_overlapping=True, per="body", planes=True, mode=None):
         super().__init__(env)
         base, model, data = model_and_data(env)
         if not callable(getattr(base, "do_simulation", None)):
             raise InputTypeError(f"env: {type(base).__name__} has no do_simulation(ctrl, n_frames) to hook")
         self.ellipsoids, self.monitor, self._recorder = substep_monitor(
             model, data, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact, all_pairs=all_pairs,
-            report_overlapping=report_overlapping, planes=planes)
+            report_overlapping=report_overlapping, planes=planes, mode=mode)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
         self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
         self._own_stepping = _steps_as_mujoco_env(base)

@@ -10,6 +10,7 @@ from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
                                   StepContact, StepCounters, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
+from mjccd.mujoco.geoms import GeomChecker
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import (MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state, capture,
@@ -101,14 +102,43 @@ def selected_adapter(model, ellipsoids, pairs, motion, planes, stacklevel=2):
     return ModelAdapter(model, ellipsoids, chosen, motion, plane_pairs=on_planes)
 
 
+MODES = ("geoms", "ellipsoids")
+
+
+def check_mode(mode, motion="rigid"):
+    """``mode`` checked: "geoms" (MuJoCo's own geoms, exact), "ellipsoids" (the fitted bounds), or None: geoms
+    with the rigid motion, ellipsoids with the others (geoms mode moves each geom by the rigid lerp of its
+    pose)."""
+    if mode is None:
+        return "geoms" if motion == "rigid" else "ellipsoids"
+    if not isinstance(mode, str) or mode not in MODES:
+        raise InputError(f"mode: expected 'geoms', 'ellipsoids' or None, got {mode!r}")
+    if mode == "geoms" and motion != "rigid":
+        raise InputError(f"mode: geoms mode moves each geom by the rigid lerp of its pose; motion={motion!r} "
+                         f"needs mode='ellipsoids'")
+    return mode
+
+
+def selected_geoms(model, ellipsoids, pairs, planes, stacklevel=2):
+    """The :class:`~mjccd.mujoco.geoms.GeomChecker` of a monitor's arguments (geoms mode), with the warning of a
+    selection that leaves nothing to check (naming the line ``stacklevel`` frames up from the caller's)."""
+    checker = GeomChecker(model, ellipsoids, pairs, planes=planes, stacklevel=stacklevel + 1)
+    if checker.reason is not None:
+        warnings.warn(checker.reason, CoverageWarning, stacklevel=stacklevel + 1)
+    return checker
+
+
 class CCDMonitor:
-    """Exact first contacts between fitted ellipsoids, one MuJoCo step at a time.
+    """Exact first contacts of every MuJoCo step, one step at a time: of the model's own geoms (geoms mode, the
+    default with the rigid motion) or of their fitted ellipsoids.
 
     Args:
         model, data: the simulation (``data`` is stepped by :meth:`step`).
-        ellipsoids: :class:`EllipsoidSet` (e.g. from :func:`mjccd.mujoco.fit_model`).
-        pairs: list of (body, body) names or ids; default :func:`~mjccd.mujoco.default_pairs`
-            (see :func:`mjccd.mujoco.pairs.select_pairs`).
+        ellipsoids: :class:`EllipsoidSet` (e.g. from :func:`mjccd.mujoco.fit_model`): the bounds of ellipsoid
+            mode; in geoms mode the meshes are checked on them.
+        pairs: None (MuJoCo's rules: on the geoms themselves in geoms mode,
+            :func:`~mjccd.mujoco.default_pairs` in ellipsoid mode), ``"characters"``, ``"self"`` or a list of
+            (body, body) names or ids (see :func:`mjccd.mujoco.pairs.select_pairs`).
         motion: "rigid", "affine" or "chain" (see :func:`~mjccd.mujoco.motions_between`).
         on_contact: called with each reported :class:`StepContact`.
         all_pairs: report every colliding pair, not only the first contact.
@@ -120,25 +150,36 @@ class CCDMonitor:
             (:func:`~mjccd.mujoco.pairs.plane_pairs`); a contact with a plane has ``geom`` set.  Height
             fields, SDF geoms and planes on mocap bodies are not checked yet: each is warned about once
             (:class:`~mjccd.mujoco.warnings.CoverageWarning`, naming the geom).
+        mode: "geoms" (each contact is of two geoms, :mod:`mjccd.mujoco.geoms`: contacts name ``geoms`` and
+            ``elements``), "ellipsoids", or None: geoms with ``motion="rigid"``, ellipsoids otherwise.
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True, planes=True):
+                 all_pairs=False, report_overlapping=True, planes=True, mode=None):
         check_simulation(model, data)
         if not isinstance(ellipsoids, EllipsoidSet):
             raise InputTypeError(f"ellipsoids: expected an EllipsoidSet, got {type(ellipsoids).__name__}")
         if not isinstance(motion, str) or motion not in MOTIONS:
             raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+        mode = check_mode(mode, motion)
         if on_contact is not None and not callable(on_contact):
             raise InputTypeError(f"on_contact: expected a callable or None, got {type(on_contact).__name__}")
         all_pairs, report_overlapping = flag(all_pairs, "all_pairs"), flag(report_overlapping, "report_overlapping")
         planes = flag(planes, "planes")
         self.model, self.data, self.ellipsoids = model, data, ellipsoids
         self.motion, self.on_contact, self.all_pairs = motion, on_contact, all_pairs
-        self.report_overlapping = report_overlapping
-        self.adapter = selected_adapter(model, ellipsoids, pairs, motion, planes)
-        self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
-        self.plane_pairs = self.adapter.plane_pairs
+        self.report_overlapping, self.mode = report_overlapping, mode
+        self.geoms = None
+        if mode == "geoms":
+            self.geoms = selected_geoms(model, ellipsoids, pairs, planes)
+            self.adapter = None
+            self.body_ids, self.labels = np.unique(self.geoms.body), self.geoms.labels
+            self.pairs, self.plane_pairs = self.geoms.pairs, np.empty((0, 2), dtype=np.int64)
+        else:
+            self.adapter = selected_adapter(model, ellipsoids, pairs, motion, planes)
+            self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
+            self.plane_pairs = self.adapter.plane_pairs
+        self._geom_poses = None  # geoms mode: (state key bytes, poses) of the last state seen
         self.last_report = None
         # no pair and no plane: a step is the step alone (see advance_checked)
         self._idle = len(self.pairs) == 0 and len(self.plane_pairs) == 0
@@ -149,8 +190,9 @@ class CCDMonitor:
 
     @property
     def scene(self):
-        """The :class:`mjccd.scene.Scene` of rigid and affine motions (None for chains or no pairs)."""
-        return self.adapter.scene
+        """The :class:`mjccd.scene.Scene` of rigid and affine motions in ellipsoid mode (None for chains, geoms
+        mode or no pairs)."""
+        return None if self.adapter is None else self.adapter.scene
 
     # ------------------------------------------------------------ stepping
 
@@ -198,6 +240,8 @@ class CCDMonitor:
             self.last_report = UNSTABLE_REPORT if went_bad(d, self._bad, counts_before[self._bad_bytes], time_before) \
                 else NO_PAIR_REPORT
             return self.last_report
+        if self.geoms is not None:
+            return self._advance_geoms(d, advance, counts, counts_before, time_before, step_name)
         poses = self._poses
         if poses is None and self.adapter.scene is not None:
             poses = self._poses = StepCheck(self)
@@ -233,6 +277,29 @@ class CCDMonitor:
             raise
         return self._reported(report)
 
+    def _poses_of(self, state):
+        """Geoms mode: the checked geoms' poses in ``state`` (those of the last state seen are reused)."""
+        key = state.qpos.tobytes() + state.mocap_pos.tobytes() + state.mocap_quat.tobytes()
+        cached = self._geom_poses
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        poses = self.geoms.geom_poses(state)
+        self._geom_poses = (key, poses)
+        return poses
+
+    def _advance_geoms(self, d, advance, counts, counts_before, time_before, step_name):
+        """advance_checked in geoms mode: the geoms' poses at both ends, then their exact check."""
+        q0 = self._poses_of(capture(d))
+        advance()
+        if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
+                or d.time <= time_before or not state_finite(d):
+            return self._unstable()
+        q1 = self._poses_of(capture(d))
+        if not (np.isfinite(q0).all() and np.isfinite(q1).all()):
+            raise InputError(f"{self._names(step_name)[1]}: a geom's pose is not finite")
+        return self._reported(self.geoms.check_poses(time_before, d.time, q0, q1, all_pairs=self.all_pairs,
+                                                     new_only=not self.report_overlapping))
+
     def _watch(self, data):
         """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones) once per data."""
         self._warnings = data.warning.number
@@ -248,7 +315,9 @@ class CCDMonitor:
 
     def _unstable(self):
         """The report of a step in which MuJoCo met a bad state: nothing checked, the remembered state dropped."""
-        self.adapter.forget()
+        if self.adapter is not None:
+            self.adapter.forget()
+        self._geom_poses = None
         self.last_report = UNSTABLE_REPORT
         return UNSTABLE_REPORT
 
@@ -264,6 +333,9 @@ class CCDMonitor:
 
     def _check(self, s0, s1, names):
         """The :class:`StepReport` of the motion from state s0 to s1 (``names``: theirs, for errors)."""
+        if self.geoms is not None:
+            return self._reported(self.geoms.check(s0, s1, all_pairs=self.all_pairs,
+                                                   new_only=not self.report_overlapping))
         return self._reported(self.adapter.check(s0, s1, all_pairs=self.all_pairs,
                                                  new_only=not self.report_overlapping, names=names))
 

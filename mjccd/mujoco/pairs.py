@@ -101,6 +101,30 @@ def bounded_geoms(model, ellipsoids, body_ids=None):
     return out
 
 
+def collision_reasons(model, b1, b2, contype1, conaffinity1, contype2, conaffinity2):
+    """Reason codes (:data:`COLLIDED` or why not) of candidate geom pairs on bodies b1, b2 (arrays) with the
+    contype/conaffinity masks given, by MuJoCo's rules (module docstring), less the explicit ``<pair>``
+    elements (the caller adds those)."""
+    m = model
+    weld, dof = m.body_weldid, m.body_dofnum
+    w1, w2 = weld[b1], weld[b2]
+    reason = np.full(len(b1), COLLIDED, dtype=np.int8)
+
+    def mark(mask, code):
+        reason[(reason == COLLIDED) & mask] = code
+
+    mark(w1 == w2, WELDED)
+    mark((dof[w1] == 0) & (dof[w2] == 0), STATIC)
+    if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT:
+        parent = weld[m.body_parentid]  # the weld body of each body's parent
+        mark((w1 != 0) & (w2 != 0) & ((w1 == parent[w2]) | (w2 == parent[w1])), PARENT)
+    mark(((contype1 & conaffinity2) | (contype2 & conaffinity1)) == 0, BITMASK)
+    if m.nexclude:
+        signature = (np.minimum(b1, b2).astype(np.int64) << 16) + np.maximum(b1, b2)
+        mark(np.isin(signature, np.asarray(m.exclude_signature, dtype=np.int64)), EXCLUDED)
+    return reason
+
+
 class _Rules:
     """MuJoCo's collision rules applied to one model's ellipsoids (see the module docstring)."""
 
@@ -121,24 +145,7 @@ class _Rules:
     def reasons(self, b1, b2, contype1, conaffinity1, contype2, conaffinity2):
         """Reason codes (:data:`COLLIDED` or why not) of candidate pairs of bodies b1, b2 with the geom masks
         given, less the explicit ``<pair>`` elements (the caller adds those)."""
-        m = self.model
-        weld, dof = m.body_weldid, m.body_dofnum
-        w1, w2 = weld[b1], weld[b2]
-        reason = np.full(len(b1), COLLIDED, dtype=np.int8)
-
-        def mark(mask, code):
-            reason[(reason == COLLIDED) & mask] = code
-
-        mark(w1 == w2, WELDED)
-        mark((dof[w1] == 0) & (dof[w2] == 0), STATIC)
-        if not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_FILTERPARENT:
-            parent = weld[m.body_parentid]  # the weld body of each body's parent
-            mark((w1 != 0) & (w2 != 0) & ((w1 == parent[w2]) | (w2 == parent[w1])), PARENT)
-        mark(((contype1 & conaffinity2) | (contype2 & conaffinity1)) == 0, BITMASK)
-        if m.nexclude:
-            signature = (np.minimum(b1, b2).astype(np.int64) << 16) + np.maximum(b1, b2)
-            mark(np.isin(signature, np.asarray(m.exclude_signature, dtype=np.int64)), EXCLUDED)
-        return reason
+        return collision_reasons(self.model, b1, b2, contype1, conaffinity1, contype2, conaffinity2)
 
     def ellipsoid_pairs(self):
         """``(pairs (C, 2), reasons (C,))`` over every two ellipsoids i < j."""

@@ -301,11 +301,12 @@ class CCDWrapper(DelegatingEnvironment):
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
         ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
-        pairs, motion, on_contact, all_pairs, report_overlapping, planes: as in :class:`~mjccd.mujoco.CCDMonitor`.
+        pairs, motion, on_contact, all_pairs, report_overlapping, planes, mode: as in
+            :class:`~mjccd.mujoco.CCDMonitor` (by default the model's own geoms, exact).
     """
 
     def __init__(self, env, ellipsoids=None, *, pairs=None, motion="rigid", on_contact=None,
-                 all_pairs=False, report_overlapping=True, per="body", planes=True):
+                 all_pairs=False, report_overlapping=True, per="body", planes=True, mode=None):
         super().__init__(env)
         if not isinstance(env.observation_spec(), Mapping):
             raise InputError("env: its observation_spec is not a mapping; the ccd/* entries cannot be added")
@@ -313,7 +314,7 @@ class CCDWrapper(DelegatingEnvironment):
         model = physics.model.ptr
         self.ellipsoids, self.monitor, self._recorder = substep_monitor(
             model, physics.data.ptr, ellipsoids, per, pairs=pairs, motion=motion, on_contact=on_contact,
-            all_pairs=all_pairs, report_overlapping=report_overlapping, planes=planes)
+            all_pairs=all_pairs, report_overlapping=report_overlapping, planes=planes, mode=mode)
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
         self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
         self._substeps = None  # the PhysicsSubsteps of the physics last stepped

@@ -1,0 +1,232 @@
+"""First contacts of many geom pairs in one step: conservative filters, then the exact pair solve (numba).
+
+Each geom moves by the rigid lerp of its own pose between the step's two
+poses (centre lerp, quaternion lerp the short way), as ellipsoids do in
+:class:`mjccd.scene.Scene`: one element row of :mod:`mjccd.geoms.frames`.
+
+Two filters clear a pair without a solve; both are proven, never guesses:
+
+* *moving spheres*: a geom stays inside the sphere of radius ``rho`` (its
+  reach from its centre) about its centre, which moves along a straight line;
+  when the two centres' lines stay further apart than the sum of the radii,
+  the pair cannot touch;
+* *distance against displacement*: every point of a geom moves by at most
+  ``M = |c1 - c0| + 2 sin(theta / 2) rho`` in the step (theta its turn); a
+  geom lies inside a *proxy* capsule (a capsule, a cylinder or a box about
+  its longest axis, an ellipsoid of radii a >= b about its a axis with
+  radius b and half length a - b); when the proxies lie further apart at the
+  step's start than M_A + M_B, the pair cannot touch.  Against a plane the
+  proxy's height plays the distance.
+"""
+import math
+
+import numpy as np
+
+from mjccd.geoms import frames as fr
+from mjccd.geoms import kernel as kn
+from mjccd.geoms import systems as sy
+from mjccd.geoms.poly import _jit
+
+FILTERED = 4.0  # out[FAILED] of a pair the filters cleared (no solve; separate, no contact)
+MARGIN = 1e-9   # relative margin of the filters' floating-point tests
+
+
+@_jit
+def _rotate(q, v):
+    """Rotate v by the unit quaternion q [w, x, y, z]."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    tx = 2.0 * (y * v[2] - z * v[1])
+    ty = 2.0 * (z * v[0] - x * v[2])
+    tz = 2.0 * (x * v[1] - y * v[0])
+    return np.array([v[0] + w * tx + (y * tz - z * ty), v[1] + w * ty + (z * tx - x * tz),
+                     v[2] + w * tz + (x * ty - y * tx)])
+
+
+@_jit
+def geom_poses_into(xpos, xquat, body, local, out):
+    """out (G, 7) = the world poses [x, y, z, qw, qx, qy, qz] of geoms fixed in bodies (body poses xpos (B, 3),
+    xquat (B, 4); each geom's body index and its local pose (G, 7))."""
+    for g in range(body.shape[0]):
+        b = body[g]
+        q = xquat[b]
+        r = _rotate(q, local[g, :3])
+        for i in range(3):
+            out[g, i] = xpos[b, i] + r[i]
+        bw, bx, by, bz = local[g, 3], local[g, 4], local[g, 5], local[g, 6]
+        w, x, y, z = q[0], q[1], q[2], q[3]
+        out[g, 3] = w * bw - x * bx - y * by - z * bz
+        out[g, 4] = w * bx + x * bw + y * bz - z * by
+        out[g, 5] = w * by - x * bz + y * bw + z * bx
+        out[g, 6] = w * bz + x * by - y * bx + z * bw
+
+
+@_jit
+def proxy(kind, size):
+    """(axis, half length, radius, reach) of the capsule about a local axis that holds the shape, and the reach
+    of its points from its centre."""
+    if kind == sy.SPHERE:
+        return 2, 0.0, size[0], size[0]
+    if kind == sy.CAPSULE or kind == sy.CYLINDER:
+        reach = size[0] + size[1] if kind == sy.CAPSULE else math.hypot(size[0], size[1])
+        return 2, size[1], size[0], reach
+    if kind == sy.PLANE:
+        return 2, 0.0, 0.0, 0.0
+    # a box or an ellipsoid: about its longest axis
+    a = 0
+    for i in range(1, 3):
+        if size[i] > size[a]:
+            a = i
+    j, k = (a + 1) % 3, (a + 2) % 3
+    if kind == sy.BOX:
+        return a, size[a], math.hypot(size[j], size[k]), math.sqrt(size[0] ** 2 + size[1] ** 2 + size[2] ** 2)
+    b = max(size[j], size[k])
+    return a, size[a] - b, b, size[a]
+
+
+@_jit
+def _segment_distance(p0, d0, p1, d1):
+    """Distance between the segments p0 + s d0 and p1 + u d1 (s, u in [-1, 1])."""
+    r = p0 - p1
+    a = d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]
+    e = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
+    f = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
+    c = d0[0] * r[0] + d0[1] * r[1] + d0[2] * r[2]
+    b = d0[0] * d1[0] + d0[1] * d1[1] + d0[2] * d1[2]
+    best = 1e300
+    # the clamped closed form may miss the optimum on a degenerate configuration: try it and every end
+    denom = a * e - b * b
+    cands = np.empty((5, 2))
+    n = 0
+    if denom > 1e-300 * (a * e + 1e-300):
+        s = min(max((b * f - c * e) / denom, -1.0), 1.0)
+        u = (b * s + f) / e if e > 0.0 else 0.0
+        cands[n, 0], cands[n, 1] = s, min(max(u, -1.0), 1.0)
+        n += 1
+    for end in (-1.0, 1.0):
+        u = min(max((b * end + f) / e, -1.0), 1.0) if e > 0.0 else 0.0
+        cands[n, 0], cands[n, 1] = end, u
+        n += 1
+        s = min(max((b * end - c) / a, -1.0), 1.0) if a > 0.0 else 0.0
+        cands[n, 0], cands[n, 1] = s, end
+        n += 1
+    for k in range(n):
+        s, u = cands[k, 0], cands[k, 1]
+        dx = r[0] + s * d0[0] - u * d1[0]
+        dy = r[1] + s * d0[1] - u * d1[1]
+        dz = r[2] + s * d0[2] - u * d1[2]
+        best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz))
+    return best
+
+
+@_jit
+def _axis(q, axis, half):
+    e = np.zeros(3)
+    e[axis] = half
+    return _rotate(q, e)
+
+
+@_jit
+def clear(kinds, sizes, Q0, Q1, ga, gb):
+    """True when geoms ga and gb cannot touch in the step from poses Q0 to Q1 (G, 7), by either filter of the
+    module docstring."""
+    pa, pb = ga, gb
+    if kinds[ga] == sy.PLANE:
+        pa, pb = gb, ga
+    ax_a, la, ra, reach_a = proxy(kinds[pa], sizes[pa])
+    ax_b, lb, rb, reach_b = proxy(kinds[pb], sizes[pb])
+    c0, c1 = Q0[pa, :3], Q1[pa, :3]
+    move_a = math.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
+    turn_a = abs(Q0[pa, 3] * Q1[pa, 3] + Q0[pa, 4] * Q1[pa, 4] + Q0[pa, 5] * Q1[pa, 5] + Q0[pa, 6] * Q1[pa, 6])
+    # 2 sin(theta / 2) = 2 sqrt(1 - cos^2(theta / 2)), cos(theta / 2) = |q0 . q1|
+    move_a += 2.0 * math.sqrt(max(1.0 - min(turn_a, 1.0) ** 2, 0.0)) * reach_a
+    if kinds[pb] == sy.PLANE:
+        n = _rotate(Q0[pb, 3:], np.array([0.0, 0.0, 1.0]))
+        o = Q0[pb, :3]
+        h0 = n[0] * (c0[0] - o[0]) + n[1] * (c0[1] - o[1]) + n[2] * (c0[2] - o[2])
+        h1 = n[0] * (c1[0] - o[0]) + n[1] * (c1[1] - o[1]) + n[2] * (c1[2] - o[2])
+        if min(h0, h1) > reach_a * (1.0 + MARGIN) + MARGIN * (abs(h0) + abs(h1)):
+            return True
+        d = _axis(Q0[pa, 3:], ax_a, la)
+        low = h0 - abs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) - ra
+        return low > move_a * (1.0 + MARGIN) + MARGIN * (abs(h0) + la + ra)
+    e0, e1 = Q0[pb, :3], Q1[pb, :3]
+    # moving spheres: the centres' lines
+    u = c0 - e0
+    v = (c1 - e1) - u
+    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    t = 0.0
+    if vv > 0.0:
+        t = min(max(-(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / vv, 0.0), 1.0)
+    w = u + t * v
+    scale = abs(u[0]) + abs(u[1]) + abs(u[2]) + abs(v[0]) + abs(v[1]) + abs(v[2])
+    if math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) > (reach_a + reach_b) * (1.0 + MARGIN) + MARGIN * scale:
+        return True
+    # distance of the proxies at the start against how far their points can move
+    move_b = math.sqrt((e1[0] - e0[0]) ** 2 + (e1[1] - e0[1]) ** 2 + (e1[2] - e0[2]) ** 2)
+    turn_b = abs(Q0[pb, 3] * Q1[pb, 3] + Q0[pb, 4] * Q1[pb, 4] + Q0[pb, 5] * Q1[pb, 5] + Q0[pb, 6] * Q1[pb, 6])
+    move_b += 2.0 * math.sqrt(max(1.0 - min(turn_b, 1.0) ** 2, 0.0)) * reach_b
+    gap = _segment_distance(c0, _axis(Q0[pa, 3:], ax_a, la), e0, _axis(Q0[pb, 3:], ax_b, lb)) - ra - rb
+    return gap > (move_a + move_b) * (1.0 + MARGIN) + MARGIN * (scale + la + lb + ra + rb)
+
+
+@_jit
+def _row(Q0, Q1, g, origin, rows):
+    """The element row of geom g's motion (its pose lerp), seen from ``origin``."""
+    rows[0, 0] = fr.POSE
+    s = 1.0
+    if Q0[g, 3] * Q1[g, 3] + Q0[g, 4] * Q1[g, 4] + Q0[g, 5] * Q1[g, 5] + Q0[g, 6] * Q1[g, 6] < 0.0:
+        s = -1.0  # the lerp takes the short way, as mjccd.Rigid does
+    for i in range(3):
+        rows[0, 1 + i] = Q0[g, i] - origin[i]
+        rows[0, 8 + i] = Q1[g, i] - origin[i]
+    for i in range(4):
+        rows[0, 4 + i] = Q0[g, 3 + i]
+        rows[0, 11 + i] = s * Q1[g, 3 + i]
+
+
+@_jit
+def step_pairs(kinds, sizes, Q0, Q1, pairs, t_max, all_pairs, new_only, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
+    """Every geom pair's answer for one step into ``out`` (P, kernel.OUT): pairs the filters clear get
+    out[FAILED] = FILTERED; the others :func:`mjccd.geoms.kernel.pair_kernel`'s answer (world point), over
+    [0, t_max] and, unless ``all_pairs``, only up to the earliest first contact found so far.  With
+    ``new_only`` pairs not separate at the start do not count as contacts.  Returns the index of the earliest
+    contact (-1: none); pairs the kernel leaves to the ellipsoid solver (out[FAILED] NOT_HANDLED or PARTIAL)
+    are the caller's to finish.
+
+    kinds (G,), sizes (G, 3): the geoms' shapes; Q0, Q1 (G, 7): their world poses [x, y, z, qw, qx, qy, qz]
+    at both ends (unit quaternions); pairs (P, 2) geom rows.
+    """
+    rows_a = np.zeros((1, fr.ELEMENT_FIELDS))
+    rows_b = np.zeros((1, fr.ELEMENT_FIELDS))
+    best, best_t = -1, t_max
+    for k in range(pairs.shape[0]):
+        ga, gb = pairs[k, 0], pairs[k, 1]
+        o = out[k]
+        if clear(kinds, sizes, Q0, Q1, ga, gb):
+            for f in range(kn.OUT):
+                o[f] = 0.0
+            o[kn.STATUS] = 1.0
+            o[kn.LO] = o[kn.HI] = o[kn.TIME] = -1.0
+            o[kn.CERTIFIED] = 1.0
+            o[kn.FAILED] = FILTERED
+            continue
+        origin = (Q0[ga, :3] if kinds[ga] != sy.PLANE else Q0[gb, :3]).copy()
+        _row(Q0, Q1, ga, origin, rows_a)
+        _row(Q0, Q1, gb, origin, rows_b)
+        kn.pair_kernel(kinds[ga], sizes[ga], rows_a, kinds[gb], sizes[gb], rows_b, t_max if all_pairs else best_t,
+                       W, I, Wdd, Idd, CON, SYS, SYSR, N, o)
+        for i in range(3):
+            o[kn.POINT + i] += origin[i]
+        if o[kn.FAILED] == kn.NOT_HANDLED or o[kn.FAILED] == kn.OVERFLOW:
+            continue
+        if o[kn.STATUS] != 1.0:
+            if new_only:
+                continue
+            t = 0.0
+        else:
+            if o[kn.LO] < 0.0:
+                continue
+            t = o[kn.TIME]
+        if best < 0 or t < best_t:
+            best, best_t = k, t
+    return best

@@ -1,0 +1,304 @@
+"""Geoms mode: contacts of MuJoCo's own geoms, exact (:mod:`mjccd.geoms`), with their pairs by MuJoCo's rules.
+
+*Which geoms are real.*  A model's collision geoms (a nonzero contype or
+conaffinity, or named in a ``<pair>``) when it has any.  In a model where
+nothing collides (every geom contype = conaffinity = 0, as the bundled boxing
+and arm models, which only show motions) they are its visual geoms: the ones
+the bounding ellipsoids were fitted to.  Never the bounds themselves: the
+ellipsoids ``mjccd fit`` writes into a model (group 5, visual only) are left
+out.
+
+*Shapes.*  Spheres, capsules, cylinders, boxes, ellipsoids and static planes
+are solved exactly as they are.  A mesh is checked on the fitted ellipsoids
+that bound it (``ellipsoids`` of its body naming it, or the body's own
+ellipsoid), with one :class:`~mjccd.mujoco.warnings.CoverageWarning` naming
+the meshes; height fields and SDF geoms are not checked (warned about once).
+
+*Motion.*  Each geom moves from its pose at the step start to its pose at the
+end by the rigid lerp of its own pose (centre lerp and quaternion lerp), as
+each ellipsoid does in ellipsoid mode (:mod:`mjccd.geoms.batch`).
+
+*Pairs.*  With ``pairs=None``, MuJoCo's rules (:func:`mjccd.mujoco.pairs.collision_reasons`) on the real
+geoms, each geom pair on its own: nothing is dropped because bounding ellipsoids overlap in the reference
+pose.  With ``"characters"``, ``"self"`` or a list of body pairs, the body pairs those name (as for the
+ellipsoids, :func:`mjccd.mujoco.pairs.pairs_with_reason`) and every pair of their real geoms.  Static
+planes: by MuJoCo's rules with ``pairs=None``, else every static plane against every geom of a moving body.
+"""
+import threading
+import warnings
+
+import mujoco
+import numpy as np
+
+from mjccd.geoms import batch as gb
+from mjccd.geoms import kernel as kn
+from mjccd.geoms import systems as sy
+from mjccd.geoms.contact import element_name
+from mjccd.geoms.shapes import Box, Capsule, Cylinder, HalfSpace, Sphere
+from mjccd.geoms.solve import geom_first_contact, workspaces
+from mjccd.motion import Rigid, Static
+from mjccd.quadric import Ellipsoid
+from mjccd.mujoco.chains import body_path
+from mjccd.mujoco.ellipsoids import body_label, geom_label
+from mjccd.mujoco.motions import Kinematics
+from mjccd.mujoco.pairs import COLLIDED, collision_reasons, explicit_geom_pairs, pairs_with_reason
+from mjccd.mujoco.reports import COUNTER_NAMES, StepContact, StepCounters, StepReport
+from mjccd.mujoco.warnings import CoverageWarning
+
+G = mujoco.mjtGeom
+KINDS = {int(G.mjGEOM_SPHERE): sy.SPHERE, int(G.mjGEOM_CAPSULE): sy.CAPSULE, int(G.mjGEOM_CYLINDER): sy.CYLINDER,
+         int(G.mjGEOM_BOX): sy.BOX, int(G.mjGEOM_ELLIPSOID): sy.ELLIPSOID, int(G.mjGEOM_PLANE): sy.PLANE}
+STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
+BOUND_GROUP = 5  # where mjccd fit writes the bounding ellipsoids
+
+
+def _is_bound(model, g):
+    """A fitted bound written into the model: a visual-only ellipsoid in the bounds' group."""
+    return (int(model.geom_type[g]) == G.mjGEOM_ELLIPSOID and int(model.geom_group[g]) == BOUND_GROUP
+            and not model.geom_contype[g] | model.geom_conaffinity[g])
+
+
+def real_geoms(model):
+    """``(ids, visual)``: the geoms whose contacts geoms mode reports (module docstring) and whether they are
+    visual geoms (a model where nothing collides)."""
+    in_pairs = {int(g) for g in np.concatenate([model.pair_geom1, model.pair_geom2])}
+    ids = [g for g in range(model.ngeom)
+           if (model.geom_contype[g] or model.geom_conaffinity[g] or g in in_pairs) and not _is_bound(model, g)]
+    if ids:
+        return np.array(ids, dtype=np.int64), False
+    return np.array([g for g in range(model.ngeom) if not _is_bound(model, g)], dtype=np.int64), True
+
+
+def _moving(model, body):
+    """True when a joint lies on the body's path to the world."""
+    return any(model.body_jntnum[b] > 0 for b in body_path(model, body))
+
+
+class GeomChecker:
+    """The real geoms of a model, their pairs, and the exact first contact of a step between them.
+
+    Args:
+        model: ``mujoco.MjModel``.
+        ellipsoids: an :class:`~mjccd.mujoco.EllipsoidSet` of the model (its meshes are checked on these), or
+            None when it has no mesh to check.
+        pairs: None (MuJoCo's rules), ``"characters"``, ``"self"`` or a list of (body, body) (module docstring).
+        planes: also check the static planes.
+        stacklevel: where the coverage warnings point (as :func:`warnings.warn`, counted from the caller).
+    """
+
+    def __init__(self, model, ellipsoids=None, pairs=None, *, planes=True, stacklevel=2):
+        self.model = model
+        self.labels = [body_label(model, b) for b in range(model.nbody)]
+        real, self.visual = real_geoms(model)
+        rows = []  # (geom id, kind, size (3,), local pose (7,), body)
+        meshes, skipped = [], []
+        for g in real.tolist():
+            t = int(model.geom_type[g])
+            b = int(model.geom_bodyid[g])
+            if t in KINDS:
+                size = model.geom_size[g].copy()
+                if t == G.mjGEOM_SPHERE:
+                    size[1:] = 0.0
+                elif t in (G.mjGEOM_CAPSULE, G.mjGEOM_CYLINDER):
+                    size[2] = 0.0
+                elif t == G.mjGEOM_PLANE:
+                    if model.body_weldid[b] != 0:
+                        skipped.append(f"{geom_label(model, g)!r} (a plane on a moving body)")
+                        continue
+                    size[:] = 0.0
+                rows.append((g, KINDS[t], size, np.concatenate([model.geom_pos[g], model.geom_quat[g]]), b))
+            elif t == G.mjGEOM_MESH and ellipsoids is not None:
+                bound = self._mesh_bounds(model, ellipsoids, g)
+                if not bound:
+                    skipped.append(f"{geom_label(model, g)!r} (a mesh no ellipsoid bounds)")
+                meshes.append(geom_label(model, g))
+                rows.extend((g, sy.ELLIPSOID, r, pose, b) for r, pose in bound)
+            else:
+                skipped.append(f"{geom_label(model, g)!r} ({mujoco.mjtGeom(t).name[7:].lower()})")
+        if meshes:
+            warnings.warn(f"geoms mode checks meshes on their bounding ellipsoids: {', '.join(meshes[:10])}"
+                          + (f" and {len(meshes) - 10} more" if len(meshes) > 10 else ""), CoverageWarning,
+                          stacklevel=stacklevel + 1)
+        if skipped:
+            warnings.warn(f"geoms mode cannot check these geoms: {', '.join(skipped[:10])}"
+                          + (f" and {len(skipped) - 10} more" if len(skipped) > 10 else ""), CoverageWarning,
+                          stacklevel=stacklevel + 1)
+        self.geom_ids = np.array([r[0] for r in rows], dtype=np.int64)
+        self.kinds = np.array([r[1] for r in rows], dtype=np.int64)
+        self.sizes = np.array([r[2] for r in rows], dtype=float).reshape(-1, 3)
+        self.local = np.array([r[3] for r in rows], dtype=float).reshape(-1, 7)
+        self.body = np.array([r[4] for r in rows], dtype=np.int64)
+        self.pairs, self.reason = self._pairs(ellipsoids, pairs, planes)
+        self.kinematics = Kinematics(model)
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def _mesh_bounds(model, ellipsoids, g):
+        """The fitted ellipsoids that stand for mesh geom g: (radii, pose in its body) of those naming it, else
+        those bounding its whole body."""
+        b = int(model.geom_bodyid[g])
+        ids = ellipsoids.body_ids(model)
+        name = geom_label(model, g)
+        own = [k for k in range(len(ellipsoids)) if ids[k] == b and ellipsoids.geoms[k] == name]
+        if not own:
+            own = [k for k in range(len(ellipsoids)) if ids[k] == b and ellipsoids.geoms[k] == ""]
+        return [(ellipsoids.radii[k].copy(), np.concatenate([ellipsoids.positions[k], ellipsoids.quaternions[k]]))
+                for k in own]
+
+    def _pairs(self, ellipsoids, pairs, planes):
+        """((P, 2) row pairs, why none) of the geoms to check, planes last in each pair."""
+        m = self.model
+        n = len(self.geom_ids)
+        is_plane = self.kinds == sy.PLANE
+        solid = np.flatnonzero(~is_plane)
+        plane_rows = np.flatnonzero(is_plane) if planes else np.empty(0, dtype=np.int64)
+        explicit = explicit_geom_pairs(m)
+        out = []
+        why = None
+        if pairs is None and not self.visual:
+            iu, ju = np.triu_indices(len(solid), 1)
+            a, b = solid[iu], solid[ju]
+            ga, gb = self.geom_ids[a], self.geom_ids[b]
+            reason = collision_reasons(m, self.body[a], self.body[b], m.geom_contype[ga], m.geom_conaffinity[ga],
+                                       m.geom_contype[gb], m.geom_conaffinity[gb])
+            keep = (reason == COLLIDED) & (self.body[a] != self.body[b])
+            for k in range(len(a)):
+                if keep[k] or (min(ga[k], gb[k]), max(ga[k], gb[k])) in explicit:
+                    out.append((a[k], b[k]))
+            for p in plane_rows.tolist():
+                gp = self.geom_ids[p]
+                bodies = np.full(len(solid), self.body[p])
+                reason = collision_reasons(m, self.body[solid], bodies, m.geom_contype[self.geom_ids[solid]],
+                                           m.geom_conaffinity[self.geom_ids[solid]], np.full(len(solid),
+                                           m.geom_contype[gp]), np.full(len(solid), m.geom_conaffinity[gp]))
+                for k, e in enumerate(solid.tolist()):
+                    if reason[k] == COLLIDED or (min(gp, self.geom_ids[e]), max(gp, self.geom_ids[e])) in explicit:
+                        out.append((e, p))
+            if not out:
+                why = "no pair to check: MuJoCo's rules collide no two of the model's geoms"
+        else:
+            if ellipsoids is None:
+                raise ValueError("ellipsoids: needed to read the body pairs of a pairs argument")
+            chosen, why = pairs_with_reason(m, ellipsoids, pairs)
+            ids = ellipsoids.body_ids(m)
+            bodies = {(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in chosen.tolist()}
+            for a in solid.tolist():
+                for b in solid.tolist():
+                    if a < b and (min(self.body[a], self.body[b]), max(self.body[a], self.body[b])) in bodies:
+                        out.append((a, b))
+            for p in plane_rows.tolist():
+                out.extend((e, p) for e in solid.tolist() if _moving(m, int(self.body[e])))
+            if out:
+                why = None
+        return np.array(out, dtype=np.int64).reshape(-1, 2), why
+
+    # ------------------------------------------------------------ checks
+
+    def geom_poses(self, state):
+        """(G, 7) world poses [x, y, z, qw, qx, qy, qz] of the checked geoms in ``state``."""
+        xpos, xquat = self.kinematics.body_poses(state)
+        out = np.empty((len(self.geom_ids), 7))
+        gb.geom_poses_into(xpos, xquat, self.body, self.local, out)
+        return out
+
+    def check(self, s0, s1, *, all_pairs=False, new_only=False):
+        """The :class:`~mjccd.mujoco.StepReport` of the step from :class:`~mjccd.mujoco.State` s0 to s1 (every
+        contact with ``all_pairs``, else the first; ``new_only``: pairs not separate at the start left out)."""
+        return self.check_poses(s0.time, s1.time, self.geom_poses(s0), self.geom_poses(s1), all_pairs=all_pairs,
+                                new_only=new_only)
+
+    def check_poses(self, t0, t1, Q0, Q1, *, all_pairs=False, new_only=False):
+        """As :meth:`check`, from the geom poses (G, 7) at both ends of a step from time t0 to t1."""
+        npairs = len(self.pairs)
+        if npairs == 0:
+            return StepReport(None, (), 0, 0, 0, False, StepCounters([0] * len(COUNTER_NAMES)))
+        if not self._lock.acquire(blocking=False):
+            raise RuntimeError("GeomChecker: used from two threads at once; give each thread its own checker")
+        try:
+            out = np.empty((npairs, kn.OUT))
+            gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, 1.0, bool(all_pairs), bool(new_only),
+                          *workspaces(), out)
+        finally:
+            self._lock.release()
+        contacts = []
+        counts = dict.fromkeys(COUNTER_NAMES, 0)
+        counts["pairs"] = npairs
+        solved = np.flatnonzero(out[:, kn.FAILED] != gb.FILTERED)
+        counts["sphere_culled"] = npairs - len(solved)
+        for k in solved.tolist():
+            o = out[k]
+            failed = o[kn.FAILED]
+            counts["solved_exactly"] += 1
+            if failed == kn.NOT_HANDLED or failed == kn.PARTIAL:
+                c = self._solve_other(k, Q0, Q1)
+            else:
+                c = self._kernel_contact(k, o)
+            if c is None:
+                continue
+            status, frac, point, normal, certain, bracket, elements = c
+            if status != "separate":
+                counts["overlapping_t0"] += 1
+                if new_only:
+                    continue
+            counts["colliding"] += 1
+            counts["uncertain"] += not certain
+            contacts.append(self._contact(t0, t1, k, frac, point, normal, status, certain, bracket, elements))
+        contacts.sort(key=lambda c: c.fraction)
+        first = contacts[0] if contacts else None
+        return StepReport(first, tuple(contacts) if all_pairs else (), counts["pairs"], counts["solved_exactly"],
+                          counts["uncertain"], False, StepCounters([counts[name] for name in COUNTER_NAMES]))
+
+    def _kernel_contact(self, k, o):
+        """(status, fraction, point, normal, certain, bracket, elements) of pair k's kernel answer, or None."""
+        status = STATUS[int(o[kn.STATUS])]
+        if status != "separate":
+            return status, 0.0, None, None, True, None, None
+        if o[kn.LO] < 0.0:
+            return None
+        a, b = self.pairs[k]
+        elements = (element_name(int(self.kinds[a]), int(o[kn.ELEM_A])),
+                    element_name(int(self.kinds[b]), int(o[kn.ELEM_B])))
+        point, normal = o[kn.POINT:kn.POINT + 3].copy(), o[kn.NORMAL:kn.NORMAL + 3].copy()
+        if o[kn.CERTIFIED] > 0.0:
+            return status, float(o[kn.TIME]), point, normal, True, None, elements
+        return status, float(o[kn.LO]), point, normal, False, (float(o[kn.LO]), float(o[kn.HI])), elements
+
+    def _shape(self, e):
+        kind, size = int(self.kinds[e]), self.sizes[e]
+        if kind == sy.SPHERE:
+            return Sphere(size[0])
+        if kind in (sy.CAPSULE, sy.CYLINDER):
+            return (Capsule if kind == sy.CAPSULE else Cylinder)(size[0], size[1])
+        if kind == sy.BOX:
+            return Box(size)
+        if kind == sy.ELLIPSOID:
+            return Ellipsoid(size)
+        return HalfSpace()
+
+    def _motion(self, e, Q0, Q1):
+        """The exact motion of row e: the lerp of its pose (a plane stays put)."""
+        if self.kinds[e] == sy.PLANE:
+            return Static(Q0[e, :3], Q0[e, 3:])
+        return Rigid(Q0[e, :3], Q0[e, 3:], Q1[e, :3], Q1[e, 3:])
+
+    def _solve_other(self, k, Q0, Q1):
+        """Pair k through :func:`mjccd.geoms.geom_first_contact` (pairs the ellipsoid solver answers)."""
+        a, b = self.pairs[k]
+        c = geom_first_contact(self._shape(a), self._motion(a, Q0, Q1), self._shape(b), self._motion(b, Q0, Q1))
+        if c is None:
+            return None
+        if c.status_at_start != "separate":
+            return c.status_at_start, 0.0, None, None, True, None, None
+        certain = c.certainty == "certified"
+        return ("separate", float(c.time), c.point, c.normal, certain, None if certain else c.bracket, c.elements)
+
+    def _contact(self, t0, t1, k, frac, point, normal, status, certain, bracket, elements):
+        a, b = (int(x) for x in self.pairs[k])
+        ga, gb_ = int(self.geom_ids[a]), int(self.geom_ids[b])
+        ba, bb = int(self.body[a]), int(self.body[b])
+        dt = (t1 - t0) if t0 is not None and t1 is not None and t1 > t0 else self.model.opt.timestep
+        start = t0 if t0 is not None else 0.0
+        seconds = None if bracket is None else (start + bracket[0] * dt, start + bracket[1] * dt)
+        return StepContact(start + frac * dt, frac, (self.labels[ba], self.labels[bb]), (ba, bb), (-1, -1),
+                           point, normal, status, "certified" if certain else "uncertain", seconds, k,
+                           gb_ if self.kinds[b] == sy.PLANE else -1, (ga, gb_), elements)

@@ -51,6 +51,8 @@ from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 from mjccd.mujoco import adapter
 from mjccd.mujoco.adapter import ModelAdapter
+from mjccd.mujoco.geoms import GeomChecker
+from mjccd.mujoco.monitor import check_mode
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, geom_ellipsoids, geom_label
 from mjccd.mujoco.motions import State, as_state
 from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
@@ -148,6 +150,12 @@ def replay_planes(model, ellipsoids, planes="all"):
     if planes == "none":
         return np.zeros((0, 2), dtype=np.int64)
     return every_plane_pair(model, ellipsoids) if planes == "all" else plane_pairs(model, ellipsoids)
+
+
+def geom_row_labels(checker):
+    """A short label per checked geom for reports: its body's name, or its geom's when the body holds several."""
+    bodies = [checker.labels[int(b)] for b in checker.body]
+    return [body if bodies.count(body) == 1 else geom for geom, body in zip(checker.labels_of_rows, bodies)]
 
 
 def ellipsoid_labels(ellipsoids):
@@ -616,6 +624,18 @@ class ReplayResult:
     source: Trajectory = field(default=None, repr=False, compare=False)  # where ``time`` is read from
     plane_pairs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     plane_names: dict = field(default_factory=dict)  # plane geom id -> (geom name, body name)
+    mode: str = "ellipsoids"
+    geoms: object = field(default=None, repr=False, compare=False)  # geoms mode: the GeomChecker
+
+    @property
+    def part_key(self):
+        """What a contact's two parts are in contacts.json: "geoms" (geoms mode) or "ellipsoids"."""
+        return "geoms" if self.mode == "geoms" else "ellipsoids"
+
+    @property
+    def parts(self):
+        """The names of the parts checked: geoms (geoms mode) or ellipsoids."""
+        return self.geoms.labels_of_rows if self.mode == "geoms" else list(self.ellipsoids.geoms)
 
     @property
     def n_checked(self):
@@ -623,9 +643,16 @@ class ReplayResult:
         return len(self.pairs) + len(self.plane_pairs)
 
     def names(self, p):
-        """``(ellipsoids, bodies, labels)`` of pair ``p`` (below P: two ellipsoids; from P on: an ellipsoid and a
-        plane, named by its geom and its body), each a list of two names, as contacts.json gives them."""
+        """``(parts, bodies, labels)`` of pair ``p`` (geoms mode: two geoms; else below P: two ellipsoids, from P
+        on: an ellipsoid and a plane, named by its geom and its body), each a list of two names, as contacts.json
+        gives them."""
         ell = self.ellipsoids
+        if self.mode == "geoms":
+            g = self.geoms
+            a, b = (int(x) for x in self.pairs[p])
+            parts = [g.labels_of_rows[a], g.labels_of_rows[b]]
+            bodies = [g.labels[int(g.body[a])], g.labels[int(g.body[b])]]
+            return parts, bodies, [self.labels[a], self.labels[b]]
         if p < len(self.pairs):
             i, j = (int(x) for x in self.pairs[p])
             return [ell.geoms[i], ell.geoms[j]], [ell.bodies[i], ell.bodies[j]], [self.labels[i], self.labels[j]]
@@ -649,8 +676,9 @@ class ReplayResult:
 
 
 def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes="all", progress=True, render=True,
-           max_rendered=4, force=False, chunk_frames=None, read_frames=None):
-    """Replay a trajectory on a model and find every first contact between bounding ellipsoids.
+           max_rendered=4, force=False, chunk_frames=None, read_frames=None, mode=None):
+    """Replay a trajectory on a model and find every first contact of its geoms (geoms mode, the default with the
+    rigid motion) or of their bounding ellipsoids.
 
     Args:
         model_path: MJCF file with bounding ellipsoid geoms (group 5).
@@ -666,6 +694,9 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
             None: the motion's :data:`CHUNK_FRAMES`.  The results do not depend on it.
         read_frames: frames read from the trajectory file at a time (None: :data:`READ_FRAMES`); the
             results do not depend on it either.
+        mode: "geoms": the model's own geoms, exact (:mod:`mjccd.mujoco.geoms`: its collision geoms, or in a
+            model where nothing collides its visual geoms, never the bounds), on the body pairs the ellipsoid
+            pairs name; "ellipsoids": the bounds; None: geoms with the rigid motion, ellipsoids otherwise.
     Returns:
         a :class:`ReplayResult`.
     """
@@ -679,17 +710,30 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
         raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
     if planes not in PLANE_RULES:  # before the model is loaded
         raise ReplayError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {planes!r}")
+    try:
+        mode = check_mode(mode, motion)
+    except InputError as exc:
+        raise ReplayError(str(exc)) from None
     model = load_model(model_path)
     ellipsoids, pairs = replay_ellipsoids(model, pairs, source=str(model_path))
-    on_planes = replay_planes(model, ellipsoids, planes)
     trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
     folder = None if out_dir is None else output_folder(out_dir, force)
-    result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
-                          ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
-                          plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
-                                       for g in set(on_planes[:, 1].tolist())})
+    if mode == "geoms":
+        ids = ellipsoids.body_ids(model)
+        bodies = sorted({(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in pairs.tolist()})
+        checker = GeomChecker(model, ellipsoids, bodies, planes=False if planes == "none" else planes, stacklevel=2)
+        if not len(checker.pairs):
+            raise ReplayError(f"{model_path}: {checker.reason or 'no pair of geoms to check'}")
+        result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, checker.pairs,
+                              geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker)
+    else:
+        on_planes = replay_planes(model, ellipsoids, planes)
+        result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
+                              ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
+                              plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
+                                           for g in set(on_planes[:, 1].tolist())})
+        checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
     rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
-    checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
     _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
     if folder is not None:
         try:
@@ -733,9 +777,13 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     by frame, of both ends of the first ``max_rendered`` intervals with a first
     contact: what :func:`render_frames` draws.
     """
-    warm_up(checker.motion)  # the first compile (or cache load) is not part of the timing
     model = checker.model
-    checker.qpos_poses(model.qpos0[None])  # nor is the kinematics kernel's
+    if result.mode == "geoms":  # the first compile (or cache load) is not part of the timing
+        p = checker.qpos_poses(model.qpos0[None])[0]
+        checker.check_poses(0.0, 1.0, p, p, all_pairs=True)
+    else:
+        warm_up(checker.motion)
+        checker.qpos_poses(model.qpos0[None])  # nor is the kinematics kernel's
     mocap = model.body_mocapid >= 0
     mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
     counters = dict.fromkeys(COUNTER_NAMES, 0)
@@ -794,7 +842,7 @@ def _check_centres(poses, first, result):
     bad = np.argwhere(~np.all(np.abs(poses[:, :, :3]) <= COORDINATE_LIMIT, axis=2))
     if len(bad):
         k, i = bad[0]
-        raise ReplayError(f"{result.trajectory}: frame {first + k}: ellipsoid {result.ellipsoids.geoms[i]!r} of "
+        raise ReplayError(f"{result.trajectory}: frame {first + k}: {result.part_key[:-1]} {result.parts[i]!r} of "
                           f"{result.model} is at {poses[k, i, :3].tolist()}, beyond ±{COORDINATE_LIMIT:g} m")
 
 
@@ -867,13 +915,17 @@ def _record(result, k, report, t0, t1, flags):
         flags[c.pair] = True
         if c.status_at_start != "separate":
             continue
-        ellipsoids, bodies, labels = result.names(c.pair)
+        parts, bodies, labels = result.names(c.pair)
         none = (0.0, 0.0, 0.0)
-        result.contacts.append({
-            "frame": int(k), "toi": float(c.fraction), "time": float(t0 + c.fraction * dt),
-            "ellipsoids": ellipsoids, "bodies": bodies, "labels": labels,
-            "point": [float(x) for x in (none if c.point is None else c.point)],
-            "normal": [float(x) for x in (none if c.normal is None else c.normal)]})
+        contact = {"frame": int(k), "toi": float(c.fraction), "time": float(t0 + c.fraction * dt),
+                   result.part_key: parts, "bodies": bodies, "labels": labels,
+                   "point": [float(x) for x in (none if c.point is None else c.point)],
+                   "normal": [float(x) for x in (none if c.normal is None else c.normal)]}
+        if c.elements is not None:
+            contact["elements"] = list(c.elements)
+        if c.certainty != "certified":
+            contact["certainty"] = c.certainty
+        result.contacts.append(contact)
 
 
 def warm_up(motion="rigid"):
@@ -970,8 +1022,9 @@ def summary(result):
     frames_hit = result.frames_in_contact
     pairs_hit = len(result.overlaps)
     planes = f", {len(result.plane_pairs)} ellipsoid-plane pairs" if len(result.plane_pairs) else ""
+    what = f"{len(result.parts)} geoms" if result.mode == "geoms" else f"{len(result.ellipsoids)} ellipsoids"
     lines = [
-        f"{result.n_frames} frames ({t['intervals']} intervals), {len(result.ellipsoids)} ellipsoids, "
+        f"{result.n_frames} frames ({t['intervals']} intervals), {what}, "
         f"{len(result.pairs)} pairs{planes}, motion {result.motion}",
         f"first contacts: {len(result.contacts)}; frames with contact: {frames_hit}; "
         f"pairs ever in contact: {pairs_hit}",
@@ -986,16 +1039,17 @@ def _overlap_spans(result):
     """The ``in_contact`` entries of contacts.json: each pair ever in contact, in pair order, and its frame runs."""
     spans = []
     for p in sorted(result.overlaps):
-        ellipsoids, bodies, labels = result.names(p)
-        spans.append({"ellipsoids": ellipsoids, "bodies": bodies, "labels": labels,
+        parts, bodies, labels = result.names(p)
+        spans.append({result.part_key: parts, "bodies": bodies, "labels": labels,
                       "frames": [[a, b] for a, b, _, _ in result.overlaps[p]]})
     return spans
 
 
 def write_reports(result, folder):
     """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`)."""
+    key = result.part_key
     doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
-           "frames": result.n_frames, "ellipsoids": list(result.ellipsoids.geoms), "pairs": len(result.pairs),
+           "mode": result.mode, "frames": result.n_frames, key: result.parts, "pairs": len(result.pairs),
            "plane_pairs": len(result.plane_pairs),
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
@@ -1004,10 +1058,10 @@ def write_reports(result, folder):
         fh.write("\n")
     with folder.open("contacts.csv", "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(["frame", "time", "toi", "ellipsoid_a", "ellipsoid_b", "body_a", "body_b",
+        w.writerow(["frame", "time", "toi", f"{key[:-1]}_a", f"{key[:-1]}_b", "body_a", "body_b",
                     "px", "py", "pz", "nx", "ny", "nz"])
         for c in result.contacts:
-            w.writerow([c["frame"], repr(c["time"]), repr(c["toi"]), *c["ellipsoids"], *c["bodies"],
+            w.writerow([c["frame"], repr(c["time"]), repr(c["toi"]), *c[key], *c["bodies"],
                         *map(repr, c["point"]), *map(repr, c["normal"])])
     with folder.open("timeline.png", "wb") as fh:
         plot_timeline(result, fh)
@@ -1026,11 +1080,11 @@ def plot_timeline(result, target):
     t0, t1 = result.time_range
     hits_of = {}
     for c in result.contacts:
-        hits_of.setdefault(tuple(c["ellipsoids"]), []).append(c["time"])
+        hits_of.setdefault(tuple(c[result.part_key]), []).append(c["time"])
     for row, (p, s) in enumerate(zip(sorted(result.overlaps), spans)):
         bars = _thin_runs([(a, b) for _, _, a, b in result.overlaps[p]], (t1 - t0) / PLOT_BARS)
         ax.broken_barh([(a, b - a) for a, b in bars], (row - 0.35, 0.7), facecolors="tab:blue", alpha=0.5)
-        hits = _thin_times(hits_of.get(tuple(s["ellipsoids"]), []), (t1 - t0) / PLOT_BARS)
+        hits = _thin_times(hits_of.get(tuple(s[result.part_key]), []), (t1 - t0) / PLOT_BARS)
         ax.plot(hits, [row] * len(hits), "o", color="tab:red", ms=4)
     ax.set_yticks(range(len(spans)))
     ax.set_yticklabels(labels, fontsize=7)
@@ -1096,12 +1150,12 @@ def render_frames(model, qpos, result, folder, count=4):
             break
     rgba = model.geom_rgba.copy()
     name_to_geom = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) if not n.startswith("#") else int(n[1:])
-                    for n in result.ellipsoids.geoms}
+                    for n in result.parts}
     try:
         for c in picked:
             k = c["frame"]
-            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc["ellipsoids"]
-                   if n in name_to_geom}  # the ellipsoids (not a plane they touch)
+            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc[result.part_key]
+                   if n in name_to_geom and model.geom_type[name_to_geom[n]] != mujoco.mjtGeom.mjGEOM_PLANE}
             model.geom_rgba[:] = rgba
             for g in red:
                 model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
@@ -1162,10 +1216,14 @@ def main(argv=None):
     """``mjccd replay MODEL.xml TRAJ [--motion ...] [--pairs ...] [--out DIR [--force]]``; returns the exit status."""
     parser = argparse.ArgumentParser(prog="mjccd replay",
                                      description="Replay a trajectory and report the first contacts "
-                                                 "between bounding ellipsoids.")
+                                                 "of the model's geoms (or of its bounding ellipsoids).")
     parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 5)")
     parser.add_argument("traj", help=".npz with qpos (T x nq) and time (T), or a .bvh clip")
     parser.add_argument("--motion", choices=MOTIONS, default="rigid", help="motion between frames")
+    parser.add_argument("--mode", choices=("geoms", "ellipsoids"),
+                        help="what touches: 'geoms' (the model's own geoms, exact: its collision geoms, or its "
+                             "visual geoms when nothing collides; the default with --motion rigid) or "
+                             "'ellipsoids' (the bounding ellipsoids; the default with the other motions)")
     parser.add_argument("--pairs", choices=PAIR_RULES,
                         help="pairs to check: 'characters' (ellipsoids under different top-level bodies, at "
                              "least one moving) or 'self' (within each top-level body, bodies neither rigidly "
@@ -1200,7 +1258,7 @@ def main(argv=None):
                     except InputError as exc:
                         raise ReplayError(f"{args.traj}: keyframes {k} to {k + 1}: {exc}") from None
             result = replay(args.model, args.traj, args.motion, args.out, pairs=args.pairs, planes=args.planes,
-                            render=not args.no_render, force=args.force)
+                            render=not args.no_render, force=args.force, mode=args.mode)
     except (ValueError, MjccdError) as exc:
         print(f"mjccd replay: {exc}", file=sys.stderr)
         return 2

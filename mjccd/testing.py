@@ -10,6 +10,7 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.adapter import ModelAdapter, load_model
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
+from mjccd.mujoco.monitor import check_mode, selected_geoms
 from mjccd.mujoco.motions import State
 from mjccd.mujoco.pairs import select_pairs
 
@@ -51,15 +52,20 @@ def load_trajectory(trajectory, model, times=None):
     return qpos, times
 
 
-def _setup(model, trajectory, ellipsoids, times, pairs, motion):
-    """(checker, states): the :class:`~mjccd.mujoco.ModelAdapter` of the model and the trajectory's states."""
+def _setup(model, trajectory, ellipsoids, times, pairs, motion, mode):
+    """(checker, states): the model's checker (:class:`~mjccd.mujoco.geoms.GeomChecker` in geoms mode, else the
+    :class:`~mjccd.mujoco.ModelAdapter` of its ellipsoids) and the trajectory's states."""
     model = load_model(model)
     qpos, times = load_trajectory(trajectory, model, times)
+    mode = check_mode(mode, motion)
     if ellipsoids is None:
         ellipsoids = fit_model(model)
     elif not isinstance(ellipsoids, EllipsoidSet):
         raise InputTypeError(f"ellipsoids: expected an EllipsoidSet or None, got {type(ellipsoids).__name__}")
-    checker = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
+    if mode == "geoms":
+        checker = selected_geoms(model, ellipsoids, pairs, True, stacklevel=3)
+    else:
+        checker = ModelAdapter(model, ellipsoids, select_pairs(model, ellipsoids, pairs), motion)
     return checker, _states(model, qpos, times)
 
 
@@ -96,12 +102,14 @@ def _describe(c):
             + where)
 
 
-def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None):
+def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None, mode=None):
     """First contact of every step of a qpos trajectory: a list of ``StepContact`` (steps without one skipped).
 
     A step whose answer is uncertain is listed too (``certainty == "uncertain"``, ``bracket`` in seconds).
+    ``mode``: "geoms" (the model's own geoms, the default with the rigid motion) or "ellipsoids" (their
+    fitted bounds), as in :class:`~mjccd.mujoco.CCDMonitor`.
     """
-    checker, states = _setup(model, trajectory, ellipsoids, times, pairs, motion)
+    checker, states = _setup(model, trajectory, ellipsoids, times, pairs, motion, mode)
     found = []
     for k, (s0, s1) in enumerate(zip(states, states[1:])):
         c = checker.check(s0, s1, names=(f"trajectory[{k}]", f"trajectory[{k + 1}]")).first
@@ -110,7 +118,8 @@ def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motio
     return found
 
 
-def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
+def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None,
+                         mode=None):
     """Assert that the bodies of ``pair`` first touch at ``time`` seconds (within ``tol``) along the trajectory.
 
     An uncertain answer (the exact solver hit a limit: the first contact is only known to lie
@@ -123,9 +132,11 @@ def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=
         pair: (body, body) names or ids.
         time: expected simulation time of the first contact (``times[0]`` is the start).
         times: (T,) times of the rows; default ``k * model.opt.timestep``.
+        mode: as in :func:`trajectory_contacts` (by default the model's own geoms).
     """
     time, tol = _validate.scalar(time, "time"), _tolerance(tol)
-    found = trajectory_contacts(model, trajectory, pairs=[pair], ellipsoids=ellipsoids, motion=motion, times=times)
+    found = trajectory_contacts(model, trajectory, pairs=[pair], ellipsoids=ellipsoids, motion=motion, times=times,
+                                mode=mode)
     head = f"first contact of {pair[0]!r} and {pair[1]!r}: expected t = {time:.9g} s (tol {tol:g})"
     if not found:
         qpos_times = load_trajectory(trajectory, load_model(model), times)[1]
@@ -141,7 +152,8 @@ def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=
     return c
 
 
-def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None, show=5):
+def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion="rigid", times=None, show=5,
+                      mode=None):
     """Assert that no pair (default: :func:`~mjccd.mujoco.default_pairs`) touches along the trajectory.
 
     An uncertain answer (the exact solver hit a limit and could not certify the pair free) fails
@@ -152,7 +164,8 @@ def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion=
         raise InputTypeError(f"show: expected an integer >= 0, got {show!r}")
     if show < 0:
         raise InputError(f"show: expected an integer >= 0, got {show!r}")
-    found = trajectory_contacts(model, trajectory, pairs=pairs, ellipsoids=ellipsoids, motion=motion, times=times)
+    found = trajectory_contacts(model, trajectory, pairs=pairs, ellipsoids=ellipsoids, motion=motion, times=times,
+                                mode=mode)
     if found:
         lines = "\n".join("  " + _describe(c) for c in found[:show])
         more = f"\n  ... and {len(found) - show} more" if len(found) > show else ""
@@ -166,16 +179,14 @@ def assert_no_contact(model, trajectory, *, pairs=None, ellipsoids=None, motion=
         raise AssertionError(f"{head}:\n{lines}{more}")
 
 
-def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid", times=None):
-    """Maximal time intervals [t_in, t_out] (seconds) in which the two bodies' ellipsoids are not separate."""
-    checker, states = _setup(model, trajectory, ellipsoids, times, [pair], motion)
-    shapes = [Ellipsoid(r) for r in checker.radii]
+def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid", times=None, mode=None):
+    """Maximal time intervals [t_in, t_out] (seconds) in which the two bodies (their geoms, or their ellipsoids
+    in ellipsoid mode) are not separate."""
+    checker, states = _setup(model, trajectory, ellipsoids, times, [pair], motion, mode)
     out = []
     for s0, s1 in zip(states, states[1:]):
-        motions = checker.motions(s0, s1)
         span = s1.time - s0.time
-        for i, j in checker.pairs:
-            for a, b in collision_intervals(shapes[i], motions[i], shapes[j], motions[j]):
+        for a, b in _step_intervals(checker, s0, s1):
                 lo, hi = s0.time + a * span, s0.time + b * span
                 if out and lo <= out[-1][1] + 1e-12 * max(1.0, abs(lo)):
                     out[-1] = (out[-1][0], max(out[-1][1], hi))
@@ -191,10 +202,22 @@ def contact_intervals(model, trajectory, pair, *, ellipsoids=None, motion="rigid
     return merged
 
 
-def assert_intervals(model, trajectory, pair, intervals, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None):
+def _step_intervals(checker, s0, s1):
+    """Every (t_in, t_out) fraction of the step from s0 to s1 in which one of the checker's pairs touches."""
+    if isinstance(checker, ModelAdapter):
+        shapes = [Ellipsoid(r) for r in checker.radii]
+        motions = checker.motions(s0, s1)
+        return [iv for i, j in checker.pairs for iv in collision_intervals(shapes[i], motions[i], shapes[j],
+                                                                           motions[j])]
+    q0, q1 = checker.geom_poses(s0), checker.geom_poses(s1)
+    return [iv for k in range(len(checker.pairs)) for iv in checker.pair_intervals(k, q0, q1)]
+
+
+def assert_intervals(model, trajectory, pair, intervals, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None,
+                     mode=None):
     """Assert the contact intervals (seconds) of a body pair along the trajectory, endpoint by endpoint."""
     tol = _tolerance(tol)
-    found = contact_intervals(model, trajectory, pair, ellipsoids=ellipsoids, motion=motion, times=times)
+    found = contact_intervals(model, trajectory, pair, ellipsoids=ellipsoids, motion=motion, times=times, mode=mode)
     expected = [(float(a), float(b)) for a, b in intervals]
 
     def fmt(rows):

@@ -125,13 +125,17 @@ def test_chain_replay_equals_the_monitor_with_joint_references(scene):
     assert got == expected
 
 
-def test_monitor_guard_replay_and_testing_give_the_same_contacts(scene):
-    """One model, one trajectory, rigid motion: the four MuJoCo-facing paths find the same contacts."""
+@pytest.mark.parametrize("mode", ["geoms", "ellipsoids"])
+def test_monitor_guard_replay_and_testing_give_the_same_contacts(scene, mode):
+    """One model, one trajectory, rigid motion: the MuJoCo-facing paths find the same contacts (geoms mode, the
+    default, and ellipsoid mode, which adds the guard's lean step check)."""
     model, model_file, traj, qpos, times, states = scene
     ellipsoids = geom_ellipsoids(model)
+    chosen = None if mode == "geoms" else mode
     new_only = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters", all_pairs=True,
-                          report_overlapping=False)
-    every = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters")
+                          report_overlapping=False, mode=chosen)
+    every = CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters", mode=chosen)
+    assert new_only.mode == every.mode == mode
     per_frame_new, per_frame_first, firsts = [], [], []
     for k in range(FRAMES - 1):
         new_only.check(states[k], states[k + 1])
@@ -142,32 +146,30 @@ def test_monitor_guard_replay_and_testing_give_the_same_contacts(scene):
                                                       for c in firsts)
 
     # replay: every new contact of every frame
-    result = replay.replay(model_file, traj, "rigid", None, progress=False)
+    result = replay.replay(model_file, traj, "rigid", None, progress=False, mode=chosen)
+    assert result.mode == mode
     by_frame = [[] for _ in range(FRAMES - 1)]
-    index = {name: e for e, name in enumerate(ellipsoids.geoms)}
     for c in result.contacts:
-        i, j = (index[n] for n in c["ellipsoids"])
-        bodies = (ellipsoids.bodies[i], ellipsoids.bodies[j])
-        by_frame[c["frame"]].append((bodies, c["toi"], tuple(c["point"])))
+        by_frame[c["frame"]].append((tuple(c["bodies"]), c["toi"], tuple(c["point"])))
     assert [sorted(f, key=str) for f in by_frame] == per_frame_new
 
-    # the guard's step check: the earliest new contact of each step
-    check = StepCheck(CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters",
-                                 report_overlapping=False))
-    data = mujoco.MjData(model)
-    for k in range(FRAMES - 1):
-        data.qpos[:] = qpos[k]
-        check.begin(data)
-        data.qpos[:] = qpos[k + 1]
-        may = check.end_may_touch(data)
-        lean = check.first((times[k], times[k + 1]))
-        want = per_frame_first[k]
-        assert (lean is None) == (want is None), k
-        if want is not None:
-            assert may and _key(lean) == _key(want) and lean.time == want.time
+    if mode == "ellipsoids":  # the guard's step check: the earliest new contact of each step
+        check = StepCheck(CCDMonitor(model, mujoco.MjData(model), ellipsoids, pairs="characters",
+                                     report_overlapping=False, mode="ellipsoids"))
+        data = mujoco.MjData(model)
+        for k in range(FRAMES - 1):
+            data.qpos[:] = qpos[k]
+            check.begin(data)
+            data.qpos[:] = qpos[k + 1]
+            may = check.end_may_touch(data)
+            lean = check.first((times[k], times[k + 1]))
+            want = per_frame_first[k]
+            assert (lean is None) == (want is None), k
+            if want is not None:
+                assert may and _key(lean) == _key(want) and lean.time == want.time
 
     # mjccd.testing: the first contact of each step, contacts at the step start included
-    found = trajectory_contacts(model, qpos, pairs="characters", ellipsoids=ellipsoids, times=times)
+    found = trajectory_contacts(model, qpos, pairs="characters", ellipsoids=ellipsoids, times=times, mode=chosen)
     assert [(_key(c), c.time, c.status_at_start) for c in found] == \
         [(_key(c), c.time, c.status_at_start) for c in firsts if c is not None]
 
@@ -196,13 +198,20 @@ def test_a_ball_falling_onto_a_tilted_floor_touches_at_the_closed_form_time(moti
     height = normal @ (np.array([0.0, 0.0, 1.0]) - np.array([0.0, 0.0, -0.25])) - 0.1
     t_star = height / (10.0 * normal[2])
     monitor = CCDMonitor(model, data, fit_model(model), motion=motion)
-    assert len(monitor.pairs) == 0 and monitor.plane_pairs.tolist() == [[0, 0]]
+    if monitor.mode == "geoms":  # the rigid motion: the ball geom and the floor geom, one pair of the geoms
+        assert motion == "rigid" and monitor.pairs.tolist() == [[1, 0]] and len(monitor.plane_pairs) == 0
+    else:
+        assert len(monitor.pairs) == 0 and monitor.plane_pairs.tolist() == [[0, 0]]
     contact = None
     while contact is None and data.time < 0.5:
         contact = monitor.step()
     assert contact is not None and contact.status_at_start == "separate"
     assert abs(contact.time - t_star) <= 1e-9 * model.opt.timestep
-    assert contact.bodies == ("ball", "world") and contact.geom == 0 and contact.ellipsoids == (0, -1)
+    assert contact.bodies == ("ball", "world") and contact.geom == 0
+    if monitor.mode == "geoms":
+        assert contact.geoms == (1, 0) and contact.elements == ("surface", "plane")
+    else:
+        assert contact.ellipsoids == (0, -1)
     assert np.allclose(contact.normal, -normal, atol=1e-9)
     centre = np.array([0.0, 0.0, 1.0 - 10.0 * t_star])
     assert np.allclose(contact.point, centre - 0.1 * normal, atol=1e-9)

@@ -1,5 +1,6 @@
-"""`mjccd bench fidelity` runs end to end: every new MuJoCo contact of covered geoms is recalled, and the
-tolerance fit's contacts lie within a centimetre of the real geoms."""
+"""`mjccd bench fidelity` runs end to end: in geoms mode every new MuJoCo contact is recalled, no pair goes
+unchecked and the first contacts lie within a millimetre of the real geoms; in ellipsoid mode every new contact
+of covered geoms is recalled and the tolerance fit's contacts lie within a centimetre."""
 import pytest
 
 from mjccd.bench import fidelity
@@ -8,27 +9,33 @@ pytestmark = pytest.mark.dm_control
 
 
 def _rows(text):
-    """{(env, fit): cells} of the bench's table."""
+    """{(env, mode, fit): cells} of the bench's table."""
     rows = {}
     for line in text.splitlines():
         cells = [c.strip() for c in line.strip("|").split("|")]
-        if len(cells) == 12 and cells[0] in fidelity.ENVS:
-            rows[cells[0], cells[1]] = cells
+        if len(cells) == 14 and cells[0] in fidelity.ENVS:
+            rows[cells[0], cells[1], cells[2]] = cells
     return rows
 
 
-def test_walker_recall_is_complete_and_its_floor_is_checked(tmp_path, capsys):
+def _share(cell):
+    value, counts = cell.split(" ", 1)
+    return float(value), counts
+
+
+def test_walker_recall_is_complete_and_geoms_mode_is_precise(tmp_path, capsys):
     page = tmp_path / "bench.md"
     page.write_text("# Benchmarks\n\nkept\n")
     assert fidelity.main(["--envs", "walker", "--steps", "400", "--env-steps", "60", "--markdown", str(page)]) == 0
     rows = _rows(capsys.readouterr().out)
-    assert len(rows) == 2
-    for (env, fit), cells in rows.items():
-        recalled, counts = cells[5].split(" ", 1)
-        assert int(cells[4]) > 0  # the floor: plane pairs
-        assert counts != "(0/0)" and float(recalled) == 1.0, (fit, cells[5])
-    tolerance = next(cells for (env, fit), cells in rows.items() if fit.startswith("tolerance"))
-    assert float(tolerance[6].split(" ", 1)[0]) >= 0.9
+    assert sorted(mode for _, mode, _ in rows) == ["ellipsoids", "ellipsoids", "geoms"]
+    for (env, mode, fit), cells in rows.items():
+        recall, counts = _share(cells[5])
+        assert counts != "(0/0)" and recall == 1.0, (mode, fit, cells[5])
+    geoms = next(cells for (_, mode, _), cells in rows.items() if mode == "geoms")
+    assert geoms[6] == "0" and _share(geoms[7])[0] >= 0.99
+    tolerance = next(cells for (_, _, fit), cells in rows.items() if fit.startswith("tolerance"))
+    assert _share(tolerance[8])[0] >= 0.9
     text = page.read_text()
     assert "kept" in text and "<!-- bench fidelity: begin -->" in text
 

@@ -71,8 +71,8 @@ def test_the_fast_reader_takes_only_plain_valid_two_pose_cases():
     r = np.random.default_rng(3)
     case = _two_pose_case(r, 0, ("rigid", "static"))
     numbers, affine = cases._plain_case(case)
-    a, ma = cases._body(case, "a")
-    b, mb = cases._body(case, "b")
+    a, ma, _ = cases._body(case, "a")
+    b, mb, _ = cases._body(case, "b")
     assert list(affine) == [False, False]  # the same floats as the ellipsoids' and the motions'
     assert numbers == a.radii.tolist() + ma._row.tolist() + b.radii.tolist() + mb._row.tolist()
     for path, value in (("a.radii", [1, 1, 2e12]), ("b.motion.position", [0, 0, 1e13]), ("a.radii", [1, 1]),
@@ -101,8 +101,8 @@ def test_the_fast_reader_makes_the_constructors_floats_at_every_quaternion_scale
                 q = np.array(pose["quaternion"]) * scale
                 pose["quaternion"] = [int(round(x)) for x in q] if k % 5 == 0 and scale >= 3.0 else q.tolist()
         numbers, affine = cases._plain_case(case)
-        a, ma = cases._body(case, "a")
-        b, mb = cases._body(case, "b")
+        a, ma, _ = cases._body(case, "a")
+        b, mb, _ = cases._body(case, "b")
         assert list(affine) == [kinds[0] == "affine", kinds[1] == "affine"]
         assert numbers == a.radii.tolist() + ma._row.tolist() + b.radii.tolist() + mb._row.tolist()
 

@@ -138,7 +138,7 @@ def test_start_poses_are_read_off_the_saved_state():
     for xml, reads_saved in ((plain_xml, True), (mocap_xml, False)):
         model = mujoco.MjModel.from_xml_string(xml)
         data = thrown(model, 150.0)
-        guard = GuardedStepper(model, data, fit_model(model))
+        guard = GuardedStepper(model, data, fit_model(model), mode="ellipsoids")  # the lean ellipsoid path
         assert (guard._qpos0 is not None) == reads_saved
         for _ in range(20):
             data.mocap_pos[:] += 0.01
@@ -530,7 +530,7 @@ def test_step_check_prefilter_never_hides_a_contact(motion):
         data.qvel[0::6] += 1.5  # towards the side wall
         mujoco.mj_forward(model, data)
         ell = fit_model(model, per="geom")
-        monitor = CCDMonitor(model, data, ell, motion=motion, report_overlapping=False)
+        monitor = CCDMonitor(model, data, ell, motion=motion, report_overlapping=False, mode="ellipsoids")
         check = StepCheck(monitor)
         for _ in range(150):
             s0 = capture(data)
@@ -573,7 +573,8 @@ def test_step_check_follow_reuses_the_end_poses():
     data = mujoco.MjData(model)
     data.qvel[:] = 1.0
     mujoco.mj_forward(model, data)
-    check = StepCheck(CCDMonitor(model, data, fit_model(model, per="geom"), report_overlapping=False))
+    check = StepCheck(CCDMonitor(model, data, fit_model(model, per="geom"), report_overlapping=False,
+                                 mode="ellipsoids"))
     check.begin(data)
     mujoco.mj_step(model, data)
     check.end_may_touch(data)

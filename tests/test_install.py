@@ -118,7 +118,8 @@ def test_wheel_and_sdist_carry_licences_and_small_data(installed):
     with zipfile.ZipFile(wheel) as whl:
         names = whl.namelist()
     assert {"mjccd-0.1.0.dist-info/licenses/LICENSE", "mjccd-0.1.0.dist-info/licenses/NOTICE"} <= set(names)
-    assert "mjccd/bench/data/boxing_traj_first150.npz" in names
+    assert {"mjccd/bench/data/boxing_traj_first150.npz", "mjccd/bench/data/geoms_heldout_s11.json",
+            "mjccd/bench/data/geoms_heldout_s11_expected.json"} <= set(names)
     assert wheel.stat().st_size < WHEEL_LIMIT, f"{wheel.name}: {wheel.stat().st_size} bytes"
     with tarfile.open(sdist) as tar:
         members = {m.name.split("/", 1)[1] for m in tar.getmembers() if "/" in m.name}

@@ -427,7 +427,7 @@ def limited_scene(monkeypatch):
 
     # the guard's compiled step check, compiled (or loaded) before the kernels it calls are replaced
     m, d = _throw(0.0011)
-    check = mon.StepCheck(CCDMonitor(m, d, fit_model(m)))
+    check = mon.StepCheck(CCDMonitor(m, d, fit_model(m), mode="ellipsoids"))
     check.begin(d)
     mujoco.mj_step(m, d)
     check.end_may_touch(d)
@@ -452,7 +452,7 @@ def test_monitor_reports_uncertain_scene_answers(limited_scene):
     from mjccd.mujoco.monitor import StepCheck
 
     m, d = _throw(0.0011)  # contact at 0.55 of the first step; the stand-in solver says "somewhere in [0.3, 0.8]"
-    monitor = CCDMonitor(m, d, fit_model(m))
+    monitor = CCDMonitor(m, d, fit_model(m), mode="ellipsoids")
     c = monitor.step()
     assert (c.certainty, c.point, c.normal, c.status_at_start) == ("uncertain", None, None, "separate")
     assert c.fraction == 0.3 and c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-15)
@@ -460,7 +460,7 @@ def test_monitor_reports_uncertain_scene_answers(limited_scene):
     assert monitor.last_report.pairs_uncertain == 1 and monitor.last_report.first is c
     # the guard's lean step check reads the same kernel arrays
     m, d = _throw(0.0011)
-    check = StepCheck(CCDMonitor(m, d, fit_model(m)))
+    check = StepCheck(CCDMonitor(m, d, fit_model(m), mode="ellipsoids"))
     check.begin(d)
     mujoco.mj_step(m, d)
     check.end_may_touch(d)
@@ -577,30 +577,34 @@ def test_dm_control_wrapper_reports_what_the_monitor_finds_between_the_substep_s
         env.reset()
         return env
 
-    reference, inner = humanoid(), humanoid()
-    wrapped = CCDWrapper(inner)
-    adapter = wrapped.monitor.adapter
-    states = [capture(reference.physics.data.ptr)]
-    _substep_hook(reference.physics, states)
-    spec = reference.action_spec()
-    found = 0
-    for action in np.random.default_rng(1).uniform(spec.minimum, spec.maximum, (12, len(spec.minimum))):
-        reference.step(action)
-        wrapped.step(action)
-        expected = [adapter.check(s0, s1).first for s0, s1 in zip(states[-6:-1], states[-5:])]
-        got = [r.first for r in wrapped.last_reports]
-        assert len(got) == 5
-        for e, g in zip(expected, got):
-            assert (e is None) == (g is None)
-            if e is not None:
-                found += 1
-                assert (g.time, g.fraction, g.bodies, g.ellipsoids, g.status_at_start, g.certainty, g.pair, g.geom) \
-                    == (e.time, e.fraction, e.bodies, e.ellipsoids, e.status_at_start, e.certainty, e.pair, e.geom)
-                for x, y in ((g.point, e.point), (g.normal, e.normal)):
-                    assert (x is None and y is None) or x.tobytes() == y.tobytes()
-        assert wrapped.last_contacts == [r.first for r in wrapped.last_reports if r.first is not None]
-        assert _dm_state(reference.physics) == _dm_state(inner.physics)
-    assert found > 20
+    for mode in ("geoms", "ellipsoids"):
+        reference, inner = humanoid(), humanoid()
+        wrapped = CCDWrapper(inner, mode=None if mode == "geoms" else mode)
+        assert wrapped.monitor.mode == mode
+        checker = wrapped.monitor.geoms if mode == "geoms" else wrapped.monitor.adapter
+        states = [capture(reference.physics.data.ptr)]
+        _substep_hook(reference.physics, states)
+        spec = reference.action_spec()
+        found = 0
+        for action in np.random.default_rng(1).uniform(spec.minimum, spec.maximum, (12, len(spec.minimum))):
+            reference.step(action)
+            wrapped.step(action)
+            expected = [checker.check(s0, s1).first for s0, s1 in zip(states[-6:-1], states[-5:])]
+            got = [r.first for r in wrapped.last_reports]
+            assert len(got) == 5
+            for e, g in zip(expected, got):
+                assert (e is None) == (g is None)
+                if e is not None:
+                    found += 1
+                    assert (g.time, g.fraction, g.bodies, g.ellipsoids, g.status_at_start, g.certainty, g.pair,
+                            g.geom, g.geoms, g.elements) == (e.time, e.fraction, e.bodies, e.ellipsoids,
+                                                             e.status_at_start, e.certainty, e.pair, e.geom,
+                                                             e.geoms, e.elements)
+                    for x, y in ((g.point, e.point), (g.normal, e.normal)):
+                        assert (x is None and y is None) or x.tobytes() == y.tobytes()
+            assert wrapped.last_contacts == [r.first for r in wrapped.last_reports if r.first is not None]
+            assert _dm_state(reference.physics) == _dm_state(inner.physics)
+        assert found > (10 if mode == "geoms" else 20), mode  # the real geoms touch less often
 
 
 @pytest.mark.dm_control
@@ -655,7 +659,7 @@ def test_step_check_reads_current_body_poses_as_its_own_kinematics_computes_them
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     ellipsoids = fit_model(m)
-    own, read = (StepCheck(CCDMonitor(m, d, ellipsoids, pairs="characters")) for _ in range(2))
+    own, read = (StepCheck(CCDMonitor(m, d, ellipsoids, pairs="characters", mode="ellipsoids")) for _ in range(2))
     rng = np.random.default_rng(0)
     d.qvel[:] = rng.normal(size=m.nv)
     mujoco.mj_step1(m, d)

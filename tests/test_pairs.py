@@ -391,7 +391,9 @@ def test_a_monitor_without_pairs_warns_once_then_only_steps(monkeypatch):
         raise AssertionError("a monitor without pairs copied a state")
 
     monkeypatch.setattr(monitor_module, "capture", no_copies)
-    monkeypatch.setattr(monitor.adapter, "check", no_copies)
+    assert monitor.mode == "geoms" and monitor.adapter is None
+    monkeypatch.setattr(monitor.geoms, "check", no_copies)
+    monkeypatch.setattr(monitor.geoms, "check_poses", no_copies)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         data.qvel[0] = 1.0
@@ -409,8 +411,15 @@ def test_a_dm_control_wrapper_without_pairs_adds_the_no_contact_entries():
 
     from mjccd.dm_control import OBSERVATION_KEYS, CCDWrapper
 
+    # geoms mode: MuJoCo collides the rails with the cart and the pole; their ellipsoids overlap at qpos0, so
+    # ellipsoid mode drops those pairs and has none left
+    env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False)
+    rows = env.monitor.geoms.labels_of_rows
+    assert sorted((rows[a], rows[b]) for a, b in env.monitor.pairs) == [
+        ("rail1", "cart"), ("rail1", "pole_1"), ("rail2", "cart"), ("rail2", "pole_1")]
     with pytest.warns(CoverageWarning, match="^no pair to check: ") as said:
-        env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False)
+        env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False,
+                         mode="ellipsoids")
     assert len(said) == 1 and len(env.monitor.pairs) == 0
     spec = env.observation_spec()
     env.reset()
@@ -462,7 +471,7 @@ def test_replay_of_an_imported_skeleton_checks_its_self_collisions(tmp_path, cap
                          r"self-collisions, (\d+) pairs of ellipsoids on bodies neither rigidly joined nor parent "
                          r"and child \(--pairs self\)", notes[0])
     assert found and int(found[1]) > 100
-    assert re.search(rf"24 frames \(23 intervals\), \d+ ellipsoids, {found[1]} pairs", out)
+    assert re.search(r"24 frames \(23 intervals\), \d+ geoms, \d+ pairs", out)
     assert cli.main(["replay", str(fitted), str(short), "--no-render", "--pairs", "characters"]) == 2
     assert "use pairs='self' for self-collision" in capsys.readouterr().err
 

@@ -1,4 +1,5 @@
-"""Replay end to end on a short piece of the boxing scene, and clear errors on bad input."""
+"""Replay end to end on a short piece of the boxing scene (geoms mode, the default, and ellipsoid mode), and
+clear errors on bad input."""
 import csv
 import json
 import pathlib
@@ -27,15 +28,73 @@ def short_traj(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def result(short_traj, tmp_path_factory):
+    """Ellipsoid mode, boxer against boxer only."""
     out = tmp_path_factory.mktemp("out")
-    return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, planes="none"), out
+    return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, planes="none",
+                         mode="ellipsoids"), out
 
 
 @pytest.fixture(scope="module")
 def floor_result(short_traj, tmp_path_factory):
     """The same replay with its default planes: every moving ellipsoid against the floor."""
     out = tmp_path_factory.mktemp("floor")
+    return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, mode="ellipsoids"), out
+
+
+@pytest.fixture(scope="module")
+def geoms_result(short_traj, tmp_path_factory):
+    """The default: the boxers' own geoms (their visual capsules, spheres and boxes) and the floor."""
+    out = tmp_path_factory.mktemp("geoms")
     return replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False), out
+
+
+def test_geoms_mode_is_the_default_and_checks_the_real_geoms(geoms_result):
+    """Nothing in the boxing model collides, so its real geoms are its visual ones, never the group-5 bounds; the
+    glove contacts the ellipsoids report in this piece are not contacts of the geoms, the feet on the floor are."""
+    res, out = geoms_result
+    model = replay.load_model(MODEL)
+    assert res.mode == "geoms"
+    kinds = {int(model.geom_type[g]) for g in res.geoms.geom_ids}
+    assert mujoco.mjtGeom.mjGEOM_ELLIPSOID not in kinds or all(model.geom_group[g] != 5 for g in res.geoms.geom_ids)
+    assert not any(model.geom_group[g] == 5 for g in res.geoms.geom_ids)
+    assert res.contacts and all(c["bodies"][1] == "world" and c["geoms"][1] == "floor" for c in res.contacts)
+    assert all(("Toe" in c["bodies"][0] or "Foot" in c["bodies"][0]) for c in res.contacts)
+    assert all(c["elements"][1] == "plane" and "certainty" not in c for c in res.contacts)
+    doc = json.loads((out / "contacts.json").read_text())
+    assert doc["mode"] == "geoms" and doc["geoms"] == res.parts and "ellipsoids" not in doc
+    assert doc["counters"]["pairs"] == len(res.pairs) * (LAST - FIRST - 1)
+    with open(out / "contacts.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(res.contacts) and rows[0]["geom_b"] == "floor"
+    assert "55 geoms" in replay.summary(res)
+
+
+def test_geom_contacts_agree_with_the_pairwise_geom_solver(geoms_result, short_traj):
+    """Each first contact is the exact answer of mjccd.geoms for the two geoms' pose lerps, the poses from
+    MuJoCo's own kinematics."""
+    from mjccd.geoms import HalfSpace, geom_first_contact
+    from mjccd.motion import Static
+
+    res, _ = geoms_result
+    model = replay.load_model(MODEL)
+    qpos, _ = replay.load_trajectory(short_traj, model)
+    data = mujoco.MjData(model)
+    checker = res.geoms
+    for c in res.contacts[:4]:
+        k = c["frame"]
+        a, b = (checker.labels_of_rows.index(n) for n in c["geoms"])
+        g = int(checker.geom_ids[a])
+        poses = []
+        for q in qpos[k:k + 2]:
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
+            poses.append((data.geom_xpos[g].copy(), matrix_to_quat(data.geom_xmat[g].reshape(3, 3))))
+        floor = int(checker.geom_ids[b])
+        got = geom_first_contact(checker._shape(a), Rigid(*poses[0], *poses[1]), HalfSpace(),
+                                 Static(model.geom_pos[floor], model.geom_quat[floor]))
+        assert got is not None and got.certainty == "certified"
+        assert abs(got.time - c["toi"]) < 1e-9
+        np.testing.assert_allclose(got.point, c["point"], atol=1e-6)
 
 
 def test_scene_layout():
@@ -176,8 +235,11 @@ def test_cli_errors_are_one_line(tmp_path, capsys, short_traj):
 def test_cli_runs(tmp_path, capsys, short_traj):
     assert replay.main([str(MODEL), str(short_traj), "--out", str(tmp_path), "--no-render"]) == 0
     text = capsys.readouterr().out
-    assert "a_RightArm / b_LeftForeArm" in text and "frames/s" in text
+    assert "a_LeftToeBase / world" in text and "55 geoms" in text and "frames/s" in text
     assert (tmp_path / "contacts.json").exists()
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(tmp_path / "e"), "--no-render", "--mode",
+                        "ellipsoids", "--planes", "none"]) == 0
+    assert "a_RightArm / b_LeftForeArm" in capsys.readouterr().out
 
 
 def test_cli_renders_frames_at_floor_contacts_or_says_why_not(tmp_path, short_traj):
@@ -194,7 +256,7 @@ def test_cli_renders_frames_at_floor_contacts_or_says_why_not(tmp_path, short_tr
         doc = json.loads((tmp_path / "contacts.json").read_text())
         drawn = {int(f.stem[6:]) for f in frames}
         assert drawn <= {c["frame"] + d for c in doc["first_contacts"] for d in (0, 1)}
-        assert any(c["ellipsoids"][1] == "floor" and c["frame"] in drawn for c in doc["first_contacts"])
+        assert any(c["geoms"][1] == "floor" and c["frame"] in drawn for c in doc["first_contacts"])
     else:
         assert "rendering skipped: no OpenGL backend" in done.stderr
 
@@ -246,13 +308,14 @@ def test_arm_sweep_intervals_match_the_static_test():
     assert checked == 7
 
 
-@pytest.mark.parametrize("motion", ["rigid", "affine"])
-def test_chunks_give_the_same_result(short_traj, motion):
+@pytest.mark.parametrize("motion, mode", [("rigid", None), ("rigid", "ellipsoids"), ("affine", None)])
+def test_chunks_give_the_same_result(short_traj, motion, mode):
     """Chunks of 4 frames (the plane cache carried across) find what one chunk of all frames finds."""
-    whole = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=LAST - FIRST)
-    chunked = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=4)
+    whole = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=LAST - FIRST, mode=mode)
+    chunked = replay.replay(MODEL, short_traj, motion, None, progress=False, chunk_frames=4, mode=mode)
     assert chunked.contacts == whole.contacts and len(whole.contacts) >= 1
-    assert chunked.counters == whole.counters and whole.counters["cached_plane"] > 0
+    assert chunked.counters == whole.counters
+    assert (whole.counters["cached_plane"] > 0) == (whole.mode == "ellipsoids")
     np.testing.assert_array_equal(chunked.in_contact, whole.in_contact)
 
 

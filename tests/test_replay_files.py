@@ -13,6 +13,7 @@ import pytest
 from mjccd import replay
 from mjccd.files import MANIFEST
 from mjccd.mujoco import ModelAdapter
+from mjccd.mujoco.geoms import GeomChecker
 
 from test_replay import FIRST, LAST, MODEL, ROOT, TRAJ, short_traj  # noqa: F401 (the fixture)
 
@@ -69,10 +70,11 @@ def test_failed_write_leaves_nothing(tmp_path, capsys, monkeypatch, short_traj):
     assert os.listdir(tmp_path) == []
 
 
-def test_ctrl_c_stops_between_chunks(tmp_path, monkeypatch, short_traj):
+@pytest.mark.parametrize("checker, mode", [(GeomChecker, "geoms"), (ModelAdapter, "ellipsoids")])
+def test_ctrl_c_stops_between_chunks(tmp_path, monkeypatch, short_traj, checker, mode):
     """A SIGINT inside a chunk lets the chunk finish, then stops the replay before any file is written."""
     stepped = []
-    step = ModelAdapter.check
+    step = checker.check
 
     def step_and_press_ctrl_c(self, *args, **kwargs):
         stepped.append(1)
@@ -80,10 +82,10 @@ def test_ctrl_c_stops_between_chunks(tmp_path, monkeypatch, short_traj):
             os.kill(os.getpid(), signal.SIGINT)
         return step(self, *args, **kwargs)
 
-    monkeypatch.setattr(ModelAdapter, "check", step_and_press_ctrl_c)
+    monkeypatch.setattr(checker, "check", step_and_press_ctrl_c)
     out = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt):
-        replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, chunk_frames=4)
+        replay.replay(MODEL, short_traj, "rigid", out, progress=False, render=False, chunk_frames=4, mode=mode)
     assert len(stepped) == 8  # the second chunk (frames 4..7) ran to its end
     assert not out.exists()
 

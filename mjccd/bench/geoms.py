@@ -1,4 +1,4 @@
-"""``mjccd bench geoms``: speed and accuracy of :func:`mjccd.geoms.geom_first_contact` on MuJoCo's shape pairs, against python-fcl.
+"""``mjccd bench geoms``: speed and accuracy of the exact geom solver on MuJoCo's shape pairs, against python-fcl.
 
 Every pair of sphere, capsule, cylinder, box and ellipsoid (15) and each of
 them against a static plane (5): close pairs that reach the exact stage (they
@@ -10,7 +10,7 @@ The cases: by default a set drawn by ``tests/geoms_reference.py`` (seed 23,
 checkout and cached in the user's cache folder, ``~/.cache/mjccd/bench-geoms``,
 about a minute on two cores the first time), or any ``--cases`` / ``--expected``
 pair of files in the case format; ``--quick`` takes a few cases per pair of
-the held-out set ``tests/data/geoms_heldout_s11.json``.
+the held-out set ``tests/data/geoms_heldout_s11.json`` (shipped in the package).
 
 What is timed, per case, warm (one untimed call first) and on objects built
 beforehand: the bare ``geom_first_contact(a, motion_a, b, motion_b)`` call of
@@ -24,7 +24,8 @@ Accuracy: mjccd's certified answers, its answers wrong by more than 1e-6 (or a
 missed or false contact) against the reference, its worst abs dt and the share
 of the cases its kernel solved that needed the double-double tier; fcl's
 median and max abs dt and its wrong answers (further than 1e-6, missed or
-false contacts).
+false contacts), over all cases and over those where no body rotates (there
+fcl's motion is exactly mjccd's).
 
 python-fcl: shapes ``Sphere(r)``, ``Capsule(r, 2 h)`` and ``Cylinder(r, 2 h)``
 (FCL's axis is local z too, but it takes the full length), ``Box(2 hx, 2 hy,
@@ -180,6 +181,7 @@ class BenchCase:
     rotates: bool = False
     answer: object = "not run"       # mjccd's first contact time, None, or "error: ..."
     certified: bool = False
+    bracket: tuple = None            # an uncertain answer's bracket
     tier: int = None                 # 1: the kernel needed double-double; None: the kernel did not solve it
     us: float = None                 # fastest of the repeats
     fcl: dict = field(default_factory=dict)  # peer key -> (answer, µs)
@@ -289,6 +291,7 @@ def _mjccd_answer(case):
         return False
     case.answer = None if c is None else float(c.time)
     case.certified = c is None or c.certainty == "certified"
+    case.bracket = None if case.certified else tuple(map(float, c.bracket))
     case.tier = int(out[kn.TIER]) if out[kn.FAILED] in (0.0, kn.PARTIAL) else None
     return True
 
@@ -312,6 +315,15 @@ def run(cases, repeats, fcl_samples, rotating_motion="screw", progress=True):
             fcl.continuousCollide(*args)  # warm, on the result timed below (a reused result only accumulates)
             case.fcl[key] = (answer, _fastest_us(fcl.continuousCollide, args, repeats))
     return keys
+
+
+def is_wrong(got, ref):
+    """Whether an answer (a time, None, or an error's text) is wrong against the reference (a time or None)."""
+    if isinstance(got, str):
+        return True
+    if got is None or ref is None:
+        return (got is None) != (ref is None)
+    return abs(got - ref) > DT_TOLERANCE
 
 
 def score(answers, references):
@@ -350,7 +362,9 @@ def pair_rows(cases, keys):
                "certified": sum(c.certified for c in cs), "mjccd": score([c.answer for c in cs],
                                                                           [c.reference for c in cs]),
                "kernel": len(kernel), "double_double": sum(c.tier == 1 for c in kernel),
-               "errors": [f"{c.id}: {c.answer}" for c in cs if isinstance(c.answer, str)], "peers": {}}
+               "errors": [f"{c.id}: {c.answer}" for c in cs if isinstance(c.answer, str)], "peers": {},
+               "wrong_cases": [c for c in cs if is_wrong(c.answer, c.reference)]}
+        row["uncertain_wrong"] = sum(not c.certified for c in row["wrong_cases"])
         for key in keys:
             run_on = [c for c in cs if key in c.fcl]
             if not run_on:
@@ -379,8 +393,20 @@ def _dt(value):
     return "–" if value is None else ("0" if value == 0.0 else f"{value:.1e}")
 
 
+def _answer_text(case):
+    """mjccd's answer to a case, as the notes under the table give it."""
+    if isinstance(case.answer, str):
+        return case.answer
+    if case.answer is None:
+        return "none (certified)" if case.certified else "none"
+    if case.certified:
+        return f"{case.answer:.9f} (certified)"
+    lo, hi = case.bracket
+    return f"uncertain in [{lo:.9f}, {hi:.9f}]"
+
+
 def _peer_name(key):
-    return "fcl CA" if key == CA else f"fcl naive N={key}"
+    return "CA" if key == CA else f"naive N={key}"
 
 
 def _unsupported_cell(pair, key):
@@ -389,53 +415,62 @@ def _unsupported_cell(pair, key):
     return "–"
 
 
-def _wrong(s):
+def _wrong(s, uncertain=0):
     extra = [f"{s[k]} {k}" for k in ("missed", "false") if s[k]]
+    if uncertain:
+        extra.append(f"{uncertain} uncertain")
     return f"{s['wrong']}/{s['n']}" + (f" ({', '.join(extra)})" if extra else "")
 
 
-def speed_table(rows, keys):
-    header = ["pair", "cases", "mjccd median µs", "mjccd max µs"]
-    for key in keys:
-        name = _peer_name(key)
-        header += [f"{name} median µs", f"{name} max µs", f"{name} / mjccd"]
-    lines = []
-    for r in rows:
-        cells = [r["pair"], str(r["n"]), _us(r["median_us"]), _us(r["max_us"])]
-        for key in keys:
-            p = r["peers"][key]
-            if p is None:
-                cells += [_unsupported_cell(r["pair"], key), "", ""]
-            else:
-                ratio = "–" if not p["mjccd_median_us"] else f"{p['median_us'] / p['mjccd_median_us']:.2g}×"
-                if p["n"] < r["n"]:
-                    ratio += f" (its {p['n']} cases)"
-                cells += [_us(p["median_us"]), _us(p["max_us"]), ratio]
-        lines.append(cells)
-    return header, lines
-
-
-def accuracy_table(rows, keys):
-    header = ["pair", "mjccd certified", "mjccd wrong", "mjccd worst abs dt", "double-double"]
-    for key in keys:
-        name = _peer_name(key)
-        header += [f"{name} abs dt median / max", f"{name} wrong"]
-        if key == CA:
-            header.append(f"{name} wrong, translation only")
+def mjccd_table(rows):
+    """mjccd per pair: time, certified answers, wrong answers, worst abs dt, double-double share."""
+    header = ["pair", "cases", "median µs", "max µs", "certified", "wrong", "worst abs dt", "double-double"]
     lines = []
     for r in rows:
         s = r["mjccd"]
         dd = "–" if not r["kernel"] else f"{r['double_double']}/{r['kernel']}"
-        cells = [r["pair"], f"{r['certified']}/{r['n']}", _wrong(s), _dt(s["max_dt"]), dd]
+        lines.append([r["pair"], str(r["n"]), _us(r["median_us"]), _us(r["max_us"]), f"{r['certified']}/{r['n']}",
+                      _wrong(s, r["uncertain_wrong"]), _dt(s["max_dt"]), dd])
+    return header, lines
+
+
+def fcl_speed_table(rows, keys):
+    """fcl per pair and peer: median and max µs, and the ratio of the medians fcl / mjccd on the same cases."""
+    header = ["pair"]
+    for key in keys:
+        header += [f"{_peer_name(key)} median µs", "max µs", "/ mjccd"]
+    lines = []
+    for r in rows:
+        cells = [r["pair"]]
         for key in keys:
             p = r["peers"][key]
             if p is None:
-                cells += [_unsupported_cell(r["pair"], key), ""] + ([""] if key == CA else [])
+                cells += [_unsupported_cell(r["pair"], key), "", ""]
                 continue
-            ps = p["score"]
-            cells += [f"{_dt(ps['median_dt'])} / {_dt(ps['max_dt'])}", _wrong(ps)]
-            if key == CA:
-                cells.append(_wrong(p["straight"]) if p["straight"]["n"] else "–")
+            ratio = "–" if not p["mjccd_median_us"] else f"{p['median_us'] / p['mjccd_median_us']:.2g}×"
+            if p["n"] < r["n"]:
+                ratio += f" (its {p['n']} cases)"
+            cells += [_us(p["median_us"]), _us(p["max_us"]), ratio]
+        lines.append(cells)
+    return header, lines
+
+
+def fcl_accuracy_table(rows, keys):
+    """fcl per pair and peer: median / max abs dt, wrong answers, and wrong answers where the motions agree."""
+    header = ["pair"]
+    for key in keys:
+        header += [f"{_peer_name(key)} abs dt median / max", "wrong", "translation only: wrong, max abs dt"]
+    lines = []
+    for r in rows:
+        cells = [r["pair"]]
+        for key in keys:
+            p = r["peers"][key]
+            if p is None:
+                cells += [_unsupported_cell(r["pair"], key), "", ""]
+                continue
+            ps, st = p["score"], p["straight"]
+            cells += [f"{_dt(ps['median_dt'])} / {_dt(ps['max_dt'])}", _wrong(ps),
+                      f"{_wrong(st)}, {_dt(st['max_dt'])}" if st["n"] else "–"]
         lines.append(cells)
     return header, lines
 
@@ -462,8 +497,7 @@ def _versions():
 
 
 def markdown(rows, keys, info):
-    """The section of docs/benchmarks.md: method, command, machine, the two tables and notes."""
-    have_fcl = peers.fcl_available()
+    """The section of docs/benchmarks.md: method, command, machine, the tables and notes."""
     lines = ["## MuJoCo shape pairs (`mjccd bench geoms`)", "",
              f"Command: `{info['command']}` ({info['seconds']:.0f} s)  ",
              f"Machine: {platform.machine()}, {os.cpu_count()} cores shared with other jobs, {_versions()}; "
@@ -475,43 +509,48 @@ def markdown(rows, keys, info):
              "`mjccd.geoms.geom_first_contact` through the Python API and python-fcl's `fcl.continuousCollide` "
              f"(prebuilt objects, end transforms, request and result), interleaved case by case; each call runs "
              f"{info['repeats']} times and the fastest run is the case's time. A row gives the median and the max "
-             "over the pair's cases in µs, and the ratio of the medians fcl / mjccd (above 1: fcl is slower). "
-             f"Figures are medians on a shared {os.cpu_count()}-core machine and move between runs; compare "
-             "them within a run.", ""]
-    if have_fcl:
-        motion = ("`CCDM_LINEAR` (lerp + slerp)" if info["rotating_motion"] == "linear" else
-                  "`CCDM_SCREW` (the orientation of a slerp, the centre on a helix: FCL 0.7's `CCDM_LINEAR` "
-                  "leaves its reference point uninitialised)")
-        lines += [
-            "fcl shapes: `Sphere`, `Capsule(r, 2h)` and `Cylinder(r, 2h)` (axis local z as in MuJoCo, full "
-            "length), `Box` (full sizes), `Ellipsoid`, and `Halfspace((0, 0, 1), 0)` at the plane's pose for "
-            "MuJoCo's plane. fcl CA: conservative advancement (GJK distances and motion bounds), which FCL 0.7 "
-            "does not offer for ellipsoids (it reports no contact) and which crashes the process on half-spaces "
-            "and planes; fcl naive N: the discrete `collide` at t = k / N. Motions: `CCDM_TRANS` when neither "
-            f"body rotates (exactly mjccd's rigid motion), else {motion}; on rotating pairs fcl's motion is not "
-            "mjccd's and its dt mixes the motions' difference with its solver's error, so the CA column "
-            "'translation only' counts the cases where the motions agree exactly.", ""]
-        if info.get("linear_check") is not None:
-            lines += [f"fcl `CCDM_LINEAR` self-check (translation-only queries against `CCDM_TRANS`): "
-                      f"{'passed' if info['linear_check'] else 'FAILED'}.", ""]
-    else:
-        lines += [f"python-fcl: {peers.FCL_SKIP_MESSAGE}.", ""]
-    header, body = speed_table(rows, keys)
-    lines += ["### Speed", "", format_table(header, body), ""]
-    header, body = accuracy_table(rows, keys)
-    lines += ["### Accuracy against MuJoCo", "",
-              "Wrong: further than 1e-6 from the reference, a missed or a false contact (an error counts too). "
-              "Abs dt over the cases where both found a contact. Double-double: cases whose first contact "
-              "needed the kernel's double-double tier, of those the kernel solved (– : the pair goes to the "
-              "ellipsoid or plane solver).", "",
-              format_table(header, body)]
+             "over the pair's cases in µs. Figures are medians on a shared "
+             f"{os.cpu_count()}-core machine and move between runs; compare them within a run.", "",
+             "### mjccd", "",
+             "Wrong: further than 1e-6 from the reference, a missed or a false contact (an error counts too); "
+             "an uncertain answer is its bracket's low end. Double-double: the cases whose first contact needed "
+             "the kernel's double-double tier, of those the kernel solved (–: the pair goes to the ellipsoid or "
+             "plane solver).", "", format_table(*mjccd_table(rows))]
+    wrong = [c for r in rows[:-1] for c in r["wrong_cases"]]
+    if wrong:
+        lines += ["", "mjccd's wrong answers: " + "; ".join(
+            f"`{c.id}` {_answer_text(c)} against {'none' if c.reference is None else f'{c.reference:.9f}'}"
+            for c in wrong[:12]) + ("; …" if len(wrong) > 12 else "") + "."]
     errors = [e for r in rows[:-1] for e in r["errors"]]
     if errors:
-        lines += ["", "Errors: " + "; ".join(errors)]
+        lines += ["", "Errors: " + "; ".join(errors) + "."]
     slow = sorted((r for r in rows[:-1] if r["median_us"] is not None), key=lambda r: -r["median_us"])[:3]
     if slow:
-        lines += ["", "Slowest pairs for mjccd (median): " + ", ".join(
-            f"{r['pair']} {_us(r['median_us'])} µs" for r in slow) + "."]
+        lines += ["", "Slowest pairs (median): " + ", ".join(f"{r['pair']} {_us(r['median_us'])} µs"
+                                                             for r in slow) + "."]
+    lines += ["", "### python-fcl `continuousCollide`", ""]
+    if not keys:
+        lines.append(f"Not measured: {peers.FCL_SKIP_MESSAGE}.")
+        return "\n".join(lines) + "\n"
+    motion = ("`CCDM_LINEAR` (lerp + slerp, as asked with `--fcl-motion linear`)" if info["rotating_motion"] ==
+              "linear" else "`CCDM_SCREW` (the orientations of a slerp, the centre on a helix; FCL 0.7's "
+              "`CCDM_LINEAR`, lerp + slerp, leaves its reference point uninitialised, see `mjccd/bench/peers.py`)")
+    lines += ["Shapes: `Sphere`, `Capsule(r, 2h)` and `Cylinder(r, 2h)` (axis local z as in MuJoCo, but the full "
+              "length), `Box` (full sizes), `Ellipsoid`, and `Halfspace((0, 0, 1), 0)` at the plane's pose for "
+              "MuJoCo's plane. CA: conservative advancement (GJK distances and motion bounds), which FCL 0.7 "
+              "does not offer for ellipsoids (it prints \"not supported\" and reports no contact) and which "
+              "crashes the process (segmentation fault) on half-spaces and planes, so those pairs are not run; "
+              "naive N: the discrete `collide` at t = k / N. Motions: `CCDM_TRANS` when neither body rotates "
+              f"(exactly mjccd's rigid motion), else {motion}. On rotating pairs fcl's motion is not mjccd's, so "
+              "its dt there mixes the two motions' difference with its solver's error; 'translation only' "
+              "counts the cases where the motions agree exactly. Ratios: fcl's median over mjccd's on the same "
+              "cases (below 1: fcl is faster).", ""]
+    if info.get("linear_check") is not None:
+        lines += [f"fcl `CCDM_LINEAR` self-check (translation-only queries against `CCDM_TRANS`): "
+                  f"{'passed' if info['linear_check'] else 'FAILED'}.", ""]
+    lines += [format_table(*fcl_speed_table(rows, keys)), "",
+              "Accuracy against the same reference (abs dt over the cases where both found a contact; wrong as "
+              "for mjccd).", "", format_table(*fcl_accuracy_table(rows, keys))]
     return "\n".join(lines) + "\n"
 
 

@@ -17,6 +17,10 @@ Two filters clear a pair without a solve; both are proven, never guesses:
   radius b and half length a - b); when the proxies lie further apart at the
   step's start than M_A + M_B, the pair cannot touch.  Against a plane the
   proxy's height plays the distance.
+
+A pair may also be given a *minimum motion*: when ``M_A + M_B`` (how far any
+point of one can move relative to the other) stays below it, the pair is
+left out as too slow (a guard leaves such pairs to MuJoCo's own contacts).
 """
 import math
 
@@ -28,6 +32,7 @@ from mjccd.geoms import systems as sy
 from mjccd.geoms.poly import _jit
 
 FILTERED = 4.0  # out[FAILED] of a pair the filters cleared (no solve; separate, no contact)
+TOO_SLOW = 5.0  # out[FAILED] of a pair whose relative motion stays below its minimum motion (no solve)
 MARGIN = 1e-9   # relative margin of the filters' floating-point tests
 
 
@@ -126,6 +131,28 @@ def _axis(q, axis, half):
 
 
 @_jit
+def _moves(Q0, Q1, g, reach):
+    """How far any point of geom g (``reach`` from its centre) can move in the step: M of the module
+    docstring."""
+    c0, c1 = Q0[g, :3], Q1[g, :3]
+    move = math.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
+    turn = abs(Q0[g, 3] * Q1[g, 3] + Q0[g, 4] * Q1[g, 4] + Q0[g, 5] * Q1[g, 5] + Q0[g, 6] * Q1[g, 6])
+    # 2 sin(theta / 2) = 2 sqrt(1 - cos^2(theta / 2)), cos(theta / 2) = |q0 . q1|
+    return move + 2.0 * math.sqrt(max(1.0 - min(turn, 1.0) ** 2, 0.0)) * reach
+
+
+@_jit
+def relative_motion(kinds, sizes, Q0, Q1, ga, gb):
+    """A bound of how far any point of geom ga moves relative to any point of gb in the step (a plane stays
+    put)."""
+    m = 0.0
+    for g in (ga, gb):
+        if kinds[g] != sy.PLANE:
+            m += _moves(Q0, Q1, g, proxy(kinds[g], sizes[g])[3])
+    return m
+
+
+@_jit
 def clear(kinds, sizes, Q0, Q1, ga, gb):
     """True when geoms ga and gb cannot touch in the step from poses Q0 to Q1 (G, 7), by either filter of the
     module docstring."""
@@ -135,10 +162,7 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
     ax_a, la, ra, reach_a = proxy(kinds[pa], sizes[pa])
     ax_b, lb, rb, reach_b = proxy(kinds[pb], sizes[pb])
     c0, c1 = Q0[pa, :3], Q1[pa, :3]
-    move_a = math.sqrt((c1[0] - c0[0]) ** 2 + (c1[1] - c0[1]) ** 2 + (c1[2] - c0[2]) ** 2)
-    turn_a = abs(Q0[pa, 3] * Q1[pa, 3] + Q0[pa, 4] * Q1[pa, 4] + Q0[pa, 5] * Q1[pa, 5] + Q0[pa, 6] * Q1[pa, 6])
-    # 2 sin(theta / 2) = 2 sqrt(1 - cos^2(theta / 2)), cos(theta / 2) = |q0 . q1|
-    move_a += 2.0 * math.sqrt(max(1.0 - min(turn_a, 1.0) ** 2, 0.0)) * reach_a
+    move_a = _moves(Q0, Q1, pa, reach_a)
     if kinds[pb] == sy.PLANE:
         n = _rotate(Q0[pb, 3:], np.array([0.0, 0.0, 1.0]))
         o = Q0[pb, :3]
@@ -162,9 +186,7 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
     if math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) > (reach_a + reach_b) * (1.0 + MARGIN) + MARGIN * scale:
         return True
     # distance of the proxies at the start against how far their points can move
-    move_b = math.sqrt((e1[0] - e0[0]) ** 2 + (e1[1] - e0[1]) ** 2 + (e1[2] - e0[2]) ** 2)
-    turn_b = abs(Q0[pb, 3] * Q1[pb, 3] + Q0[pb, 4] * Q1[pb, 4] + Q0[pb, 5] * Q1[pb, 5] + Q0[pb, 6] * Q1[pb, 6])
-    move_b += 2.0 * math.sqrt(max(1.0 - min(turn_b, 1.0) ** 2, 0.0)) * reach_b
+    move_b = _moves(Q0, Q1, pb, reach_b)
     gap = _segment_distance(c0, _axis(Q0[pa, 3:], ax_a, la), e0, _axis(Q0[pb, 3:], ax_b, lb)) - ra - rb
     return gap > (move_a + move_b) * (1.0 + MARGIN) + MARGIN * (scale + la + lb + ra + rb)
 
@@ -185,9 +207,22 @@ def _row(Q0, Q1, g, origin, rows):
 
 
 @_jit
-def step_pairs(kinds, sizes, Q0, Q1, pairs, t_max, all_pairs, new_only, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
+def _cleared(o, code):
+    """out row o of a pair left without a solve: separate, no contact, out[FAILED] = code."""
+    for f in range(kn.OUT):
+        o[f] = 0.0
+    o[kn.STATUS] = 1.0
+    o[kn.LO] = o[kn.HI] = o[kn.TIME] = -1.0
+    o[kn.CERTIFIED] = 1.0
+    o[kn.FAILED] = code
+
+
+@_jit
+def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_only, W, I, Wdd, Idd, CON, SYS, SYSR,
+               N, out):
     """Every geom pair's answer for one step into ``out`` (P, kernel.OUT): pairs the filters clear get
-    out[FAILED] = FILTERED; the others :func:`mjccd.geoms.kernel.pair_kernel`'s answer (world point), over
+    out[FAILED] = FILTERED, pairs that move less than ``min_motion`` (P,) relative to each other TOO_SLOW;
+    the others :func:`mjccd.geoms.kernel.pair_kernel`'s answer (world point), over
     [0, t_max] and, unless ``all_pairs``, only up to the earliest first contact found so far.  With
     ``new_only`` pairs not separate at the start do not count as contacts.  Returns the index of the earliest
     contact (-1: none); pairs the kernel leaves to the ellipsoid solver (out[FAILED] NOT_HANDLED or PARTIAL)
@@ -203,12 +238,10 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, t_max, all_pairs, new_only, W, I, Wd
         ga, gb = pairs[k, 0], pairs[k, 1]
         o = out[k]
         if clear(kinds, sizes, Q0, Q1, ga, gb):
-            for f in range(kn.OUT):
-                o[f] = 0.0
-            o[kn.STATUS] = 1.0
-            o[kn.LO] = o[kn.HI] = o[kn.TIME] = -1.0
-            o[kn.CERTIFIED] = 1.0
-            o[kn.FAILED] = FILTERED
+            _cleared(o, FILTERED)
+            continue
+        if min_motion[k] > 0.0 and relative_motion(kinds, sizes, Q0, Q1, ga, gb) < min_motion[k]:
+            _cleared(o, TOO_SLOW)
             continue
         origin = (Q0[ga, :3] if kinds[ga] != sy.PLANE else Q0[gb, :3]).copy()
         _row(Q0, Q1, ga, origin, rows_a)

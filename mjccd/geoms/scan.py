@@ -292,12 +292,13 @@ def _restrict2(c, ds, nt, s0, s1, t0, t1, out, col):
     for i in range(ds + 1):
         tl = _restrict_coefficients(c[i], out[i, :nt + 1], t0, t1)
     sl = 0.0
+    cs = col[:ds + 1]
     for k in range(nt + 1):
         for i in range(ds + 1):
-            col[i] = out[i, k]
-        sl = _restrict_coefficients(col, col, s0, s1)
+            cs[i] = out[i, k]
+        sl = _restrict_coefficients(cs, cs, s0, s1)
         for i in range(ds + 1):
-            out[i, k] = col[i]
+            out[i, k] = cs[i]
     return sl, tl
 
 
@@ -382,7 +383,6 @@ def _point_proof(C, DS, DT, errs, s, t0, t1):
     for j in range(J):
         nt_max = max(nt_max, DT[j])
     row = np.empty(nt_max + 1)
-    col = np.empty(5)
     worst, which = -1e300, -1
     for j in range(J):
         v = _bvalue(C[j], DS[j], DT[j], s, t0)

@@ -332,17 +332,21 @@ def _may_be_negative(W, I, k):
 
 
 @_jit
-def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, qk, qp, lins, nlin, side, r_w, ends, crossings):
-    """The systems 'the segment [p0, p1] (homogeneous points of one weight) meets the piece': its end points
-    (with ``ends``), the vertex of the quadric along it, and (with ``crossings``) its crossings of each plane,
-    entering and leaving.  Together they hold exactly when the segment meets the piece."""
+def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, dv, qk, qp, lins, nlin, side, r_w, ends, crossings):
+    """The systems 'the segment [p0, p1] (homogeneous points of one weight; ``dv`` = p1 - p0, 3 slots, as
+    mapped from the local direction) meets the piece': its end points (with ``ends``), the vertex of the
+    quadric along it, and (with ``crossings``) its crossings of each plane, entering and leaving.  Together
+    they hold exactly when the segment meets the piece.  A plane the segment is exactly parallel to (its
+    mapped direction has no component across it) gets no crossing: its crossing would be a point at
+    infinity that meets 0 <= 0 in every other constraint at the instant the segment lies in that plane, and
+    the first touch is always bound by another plane or an end."""
     if ends:
         point_in_piece(W, I, CON, SYS, SYSR, N, p0, qk, qp, lins, nlin, side, r_w)
         point_in_piece(W, I, CON, SYS, SYSR, N, p1, qk, qp, lins, nlin, side, r_w)
     zero = P.const(W, I, 0.0)
     d = np.empty(4, dtype=np.int64)
     for c in range(3):
-        d[c] = P.add(W, I, p1[c], p0[c], -1.0)
+        d[c] = dv[c]
     d[3] = zero
     if qk != NONE:
         al = _bilinear(W, I, qk, qp, d, d)
@@ -376,6 +380,8 @@ def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, qk, qp, lins, nlin, side, 
     if not crossings:
         return
     for k in range(nlin):
+        if P.is_zero(W, I, _lin(W, I, d, lins[k])):
+            continue  # parallel to the plane all along
         u = _lin(W, I, p0, lins[k])
         v = _lin(W, I, p1, lins[k])
         for sense in (1.0, -1.0):  # entering (u >= 0 >= v), leaving (u <= 0 <= v)
@@ -482,19 +488,23 @@ def _points_in_solid(W, I, CON, SYS, SYSR, N, pts, kind, size, R1, R2, side, r_w
 
 
 @_jit
-def _segment_in_solid(W, I, CON, SYS, SYSR, N, p0, p1, kind, size, R1, R2, side, r_w, ends, crossings):
+def _segment_in_solid(W, I, CON, SYS, SYSR, N, p0, p1, dv, kind, size, R1, R2, side, r_w, ends, crossings):
     PQ, PP, PL, PN, npc = solid_pieces(kind, size, R1, R2)
     for k in range(npc):
-        segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, PQ[k], PP[k], PL[k], PN[k], side, r_w, ends, crossings)
+        segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, dv, PQ[k], PP[k], PL[k], PN[k], side, r_w, ends,
+                         crossings)
 
 
 @_jit
 def _plane_rims(W, I, CON, SYS, SYSR, N, size, H, side):
     """A cylinder (map H into the plane's frame) against the half-space z <= 0: for each rim, its centre below
-    the plane, or its lowest point (C_z <= r |a x e_z| in homogeneous terms, squared)."""
+    the plane, or its lowest point (C_z <= r |a x e_z| in homogeneous terms, squared).  A rim that never
+    tilts (a x e_z identically zero) has its centre as its lowest point: the squared form, whose root would
+    be double, is left out."""
     r, h = size[0], size[1]
     U = fr.direction(W, I, H, 0.0, 0.0, 1.0)
-    drop = P.add(W, I, P.sq(W, I, P.scale(W, I, H[fr.M0], r)), P.sq(W, I, P.scale(W, I, U[2], r)), -1.0)
+    level = P.is_zero(W, I, U[0]) and P.is_zero(W, I, U[1])
+    drop = P.add(W, I, P.sq(W, I, P.scale(W, I, U[0], r)), P.sq(W, I, P.scale(W, I, U[1], r)), 1.0)
     for zc in (h, -h):
         C = fr.point(W, I, H, 0.0, 0.0, zc)
         if not _positive(W, I, C[2]):
@@ -502,7 +512,7 @@ def _plane_rims(W, I, CON, SYS, SYSR, N, size, H, side):
             _con(CON, N, C[2])
             _close(SYS, SYSR, N, start, side, C, 0.0)
         T = P.add(W, I, P.sq(W, I, C[2]), drop, -1.0)
-        if not _positive(W, I, T):
+        if not level and not _positive(W, I, T):
             # the lowest point of the rim, exact where C_z = r sqrt(w^2 - U_z^2) (at the touch)
             r2 = r * r
             wit = np.empty(4, dtype=np.int64)
@@ -516,17 +526,20 @@ def _plane_rims(W, I, CON, SYS, SYSR, N, size, H, side):
 
 
 @_jit
-def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, kind, size, side):
-    """The 12 edges of a box (its vertices ``vb`` in the other frame) against the solid ``kind``: tangencies
-    and plane crossings (the vertices themselves are systems of their own)."""
+def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, H, bsize, kind, size, side):
+    """The 12 edges of a box (half sizes ``bsize``, its vertices ``vb`` under the map H into the other
+    frame) against the solid ``kind``: tangencies and plane crossings (the vertices themselves are systems
+    of their own)."""
     PQ, PP, PL, PN, npc = solid_pieces(kind, size, 0.0, 0.0)
-    for v in range(8):
-        for bit in (1, 2, 4):
+    for bit in (1, 2, 4):
+        dv = fr.direction(W, I, H, 2.0 * bsize[0] if bit == 1 else 0.0, 2.0 * bsize[1] if bit == 2 else 0.0,
+                          2.0 * bsize[2] if bit == 4 else 0.0)
+        for v in range(8):
             if v & bit:
                 continue
             for k in range(npc):
-                segment_in_piece(W, I, CON, SYS, SYSR, N, vb[v], vb[v | bit], PQ[k], PP[k], PL[k], PN[k], side,
-                                 0.0, False, True)
+                segment_in_piece(W, I, CON, SYS, SYSR, N, vb[v], vb[v | bit], dv, PQ[k], PP[k], PL[k], PN[k],
+                                 side, 0.0, False, True)
 
 
 HANDLED, PARTIAL = 1, 2  # build_pair's answers besides 0 (the pair is the ellipsoid solver's)
@@ -541,7 +554,8 @@ def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     rb = sb[0]
     _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, rb, ra, 0, rb)
     if kb == CAPSULE:
-        _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], ka, sa, rb, ra, 0, rb, False, True)
+        dv = fr.direction(W, I, HAB, 0.0, 0.0, 2.0 * sb[1])
+        _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], dv, ka, sa, rb, ra, 0, rb, False, True)
         if ka == CYLINDER:
             for zc in (sa[1], -sa[1]):
                 segment_in_torus(W, I, CON, SYS, SYSR, N, pts[0], pts[1], sa[0], zc, rb, 0.0, 0, rb)
@@ -570,7 +584,7 @@ def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
     else:  # a box
         vb = _box_vertices(W, I, sa, HBA)
         _points_in_solid(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 0.0, 0.0, 1, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 1)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HBA, sa, ELLIPSOID, sb, 1)
         for axis in range(3):
             for sign in (1.0, -1.0):
                 face_section(W, I, CON, SYS, SYSR, N, HBA, sb, axis, sign, sa[axis], sa, False, 0)
@@ -611,12 +625,12 @@ def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
         vb = _box_vertices(W, I, sb, HAB)
         _points_in_solid(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0.0, 0.0, 0, 0.0)
         _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), BOX, sb, 0.0, 0.0, 1, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, BOX, sa, 0)
         return HANDLED
     if kb == BOX:  # cylinder and box
         vb = _box_vertices(W, I, sb, HAB)
         _points_in_solid(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0.0, 0.0, 0, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, CYLINDER, sa, 0)
         _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], BOX, sb, 1)
         return HANDLED
     # cylinder and cylinder

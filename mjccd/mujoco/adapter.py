@@ -30,7 +30,7 @@ from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state
+from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
 from mjccd.mujoco.warnings import mujoco_warnings
@@ -295,14 +295,11 @@ class ModelAdapter:
     def _pose_error(self, state, poses, name):
         """The :class:`~mjccd.errors.InputError` for ellipsoid poses that are not all finite, in the user's terms.
 
-        ``name`` is the state as the caller knows it ("state_t1", "data after step 2 of 5").  MuJoCo
-        checks neither mocap poses nor, without contacts, what they do, so a NaN there reaches the check.
+        ``name`` is the state as the caller knows it ("state_t1", "data after step 2 of 5").
         """
-        for field in ("qpos", "mocap_pos", "mocap_quat"):
-            values = np.ravel(getattr(state, field))
-            bad = np.flatnonzero(~np.isfinite(values))
-            if len(bad):
-                return InputError(f"{name}: {field}[{bad[0]}] is NaN or infinite")
+        error = nonfinite_error(state, name)
+        if error is not None:
+            return error
         k = int(np.flatnonzero(~np.isfinite(poses).all(axis=1))[0])
         return InputError(f"{name}: the pose of ellipsoid {k} (body {self.labels[self.body_ids[k]]!r}) is not "
                           f"finite (largest |qpos| {np.abs(state.qpos).max():.3g})")

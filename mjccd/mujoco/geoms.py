@@ -35,12 +35,13 @@ from mjccd.geoms import kernel as kn
 from mjccd.geoms import systems as sy
 from mjccd.geoms.contact import element_name
 from mjccd.geoms.shapes import Box, Capsule, Cylinder, HalfSpace, Sphere
-from mjccd.geoms.solve import geom_first_contact, workspaces
+from mjccd.errors import InputError
+from mjccd.geoms.solve import geom_collision_intervals, geom_first_contact, workspaces
 from mjccd.motion import Rigid, Static
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.chains import body_path
 from mjccd.mujoco.ellipsoids import body_label, geom_label
-from mjccd.mujoco.motions import Kinematics
+from mjccd.mujoco.motions import Kinematics, State, nonfinite_error
 from mjccd.mujoco.pairs import COLLIDED, collision_reasons, explicit_geom_pairs, pairs_with_reason
 from mjccd.mujoco.reports import COUNTER_NAMES, StepContact, StepCounters, StepReport
 from mjccd.mujoco.warnings import CoverageWarning
@@ -82,12 +83,18 @@ class GeomChecker:
         ellipsoids: an :class:`~mjccd.mujoco.EllipsoidSet` of the model (its meshes are checked on these), or
             None when it has no mesh to check.
         pairs: None (MuJoCo's rules), ``"characters"``, ``"self"`` or a list of (body, body) (module docstring).
-        planes: also check the static planes.
+        planes: True (the static planes: by MuJoCo's rules with ``pairs=None`` in a model whose geoms collide,
+            else every static plane against every geom of a moving body), ``"all"`` (always the latter),
+            ``"mujoco"`` (always MuJoCo's rules) or False.
         stacklevel: where the coverage warnings point (as :func:`warnings.warn`, counted from the caller).
     """
 
+    motion = "rigid"  # each geom moves by the rigid lerp of its pose (module docstring)
+
     def __init__(self, model, ellipsoids=None, pairs=None, *, planes=True, stacklevel=2):
         self.model = model
+        if ellipsoids is not None:
+            ellipsoids.body_ids(model)  # every ellipsoid on a body of this model (the error names any other)
         self.labels = [body_label(model, b) for b in range(model.nbody)]
         real, self.visual = real_geoms(model)
         rows = []  # (geom id, kind, size (3,), local pose (7,), body)
@@ -128,9 +135,32 @@ class GeomChecker:
         self.sizes = np.array([r[2] for r in rows], dtype=float).reshape(-1, 3)
         self.local = np.array([r[3] for r in rows], dtype=float).reshape(-1, 7)
         self.body = np.array([r[4] for r in rows], dtype=np.int64)
+        self.labels_of_rows = [geom_label(model, g) for g in self.geom_ids]
         self.pairs, self.reason = self._pairs(ellipsoids, pairs, planes)
+        self.min_motion = np.zeros(len(self.pairs))  # see set_min_motion
         self.kinematics = Kinematics(model)
         self._lock = threading.Lock()
+
+    def thickness(self):
+        """(G,) how thick each checked geom is: its smallest radius or half size (a cylinder's smaller of radius
+        and half length); a plane is 0 (the half-space adds nothing to a pair's thickness)."""
+        thin = self.sizes.copy()
+        thin[self.kinds == sy.SPHERE, 1:] = np.inf
+        rounded = (self.kinds == sy.CAPSULE)
+        thin[rounded, 1:] = np.inf
+        thin[self.kinds == sy.CYLINDER, 2] = np.inf
+        out = thin.min(axis=1)
+        out[self.kinds == sy.PLANE] = 0.0
+        return out
+
+    def set_min_motion(self, values):
+        """Leave out of each step the pairs whose geoms move less than ``values`` (P,) metres relative to each
+        other (counted as ``too_slow``): what cannot carry them far into each other is left to MuJoCo's own
+        contacts."""
+        values = np.asarray(values, dtype=float)
+        if values.shape != (len(self.pairs),) or not np.all(np.isfinite(values)) or np.any(values < 0.0):
+            raise InputError(f"min_motion: expected {len(self.pairs)} finite values >= 0, got shape {values.shape}")
+        self.min_motion = values
 
     @staticmethod
     def _mesh_bounds(model, ellipsoids, g):
@@ -153,6 +183,7 @@ class GeomChecker:
         solid = np.flatnonzero(~is_plane)
         plane_rows = np.flatnonzero(is_plane) if planes else np.empty(0, dtype=np.int64)
         explicit = explicit_geom_pairs(m)
+        by_rules = planes == "mujoco" or (planes is True and pairs is None and not self.visual)
         out = []
         why = None
         if pairs is None and not self.visual:
@@ -165,7 +196,7 @@ class GeomChecker:
             for k in range(len(a)):
                 if keep[k] or (min(ga[k], gb[k]), max(ga[k], gb[k])) in explicit:
                     out.append((a[k], b[k]))
-            for p in plane_rows.tolist():
+            for p in plane_rows.tolist() if by_rules else ():
                 gp = self.geom_ids[p]
                 bodies = np.full(len(solid), self.body[p])
                 reason = collision_reasons(m, self.body[solid], bodies, m.geom_contype[self.geom_ids[solid]],
@@ -174,6 +205,9 @@ class GeomChecker:
                 for k, e in enumerate(solid.tolist()):
                     if reason[k] == COLLIDED or (min(gp, self.geom_ids[e]), max(gp, self.geom_ids[e])) in explicit:
                         out.append((e, p))
+            if not by_rules:
+                for p in plane_rows.tolist():
+                    out.extend((e, p) for e in solid.tolist() if _moving(m, int(self.body[e])))
             if not out:
                 why = "no pair to check: MuJoCo's rules collide no two of the model's geoms"
         else:
@@ -187,7 +221,15 @@ class GeomChecker:
                     if a < b and (min(self.body[a], self.body[b]), max(self.body[a], self.body[b])) in bodies:
                         out.append((a, b))
             for p in plane_rows.tolist():
-                out.extend((e, p) for e in solid.tolist() if _moving(m, int(self.body[e])))
+                if by_rules:
+                    gp = self.geom_ids[p]
+                    es = [e for e in solid.tolist() if collision_reasons(
+                        m, self.body[e:e + 1], self.body[p:p + 1], m.geom_contype[self.geom_ids[e:e + 1]],
+                        m.geom_conaffinity[self.geom_ids[e:e + 1]], m.geom_contype[[gp]],
+                        m.geom_conaffinity[[gp]])[0] == COLLIDED]
+                else:
+                    es = [e for e in solid.tolist() if _moving(m, int(self.body[e]))]
+                out.extend((e, p) for e in es)
             if out:
                 why = None
         return np.array(out, dtype=np.int64).reshape(-1, 2), why
@@ -201,11 +243,44 @@ class GeomChecker:
         gb.geom_poses_into(xpos, xquat, self.body, self.local, out)
         return out
 
-    def check(self, s0, s1, *, all_pairs=False, new_only=False):
+    def qpos_poses(self, qpos):
+        """(F, G, 7) geom poses of qpos rows (F, nq), mocap bodies at the model's own poses."""
+        m = self.model
+        mocap = m.body_mocapid >= 0
+        mpos, mquat = m.body_pos[mocap], m.body_quat[mocap]
+        out = np.empty((len(qpos), len(self.geom_ids), 7))
+        for k, q in enumerate(qpos):
+            out[k] = self.geom_poses(State(q, mpos, mquat))
+        return out
+
+    def check(self, s0, s1, *, poses=None, all_pairs=False, new_only=False, names=("state_t0", "state_t1")):
         """The :class:`~mjccd.mujoco.StepReport` of the step from :class:`~mjccd.mujoco.State` s0 to s1 (every
-        contact with ``all_pairs``, else the first; ``new_only``: pairs not separate at the start left out)."""
-        return self.check_poses(s0.time, s1.time, self.geom_poses(s0), self.geom_poses(s1), all_pairs=all_pairs,
-                                new_only=new_only)
+        contact with ``all_pairs``, else the first; ``new_only``: pairs not separate at the start left out;
+        ``poses``: the geom poses (G, 7) of both states when the caller has them (:meth:`qpos_poses`);
+        ``names``: the two states as the caller knows them, for errors)."""
+        q0, q1 = (self.geom_poses(s0), self.geom_poses(s1)) if poses is None else poses
+        self.check_finite((s0, s1), (q0, q1), names)
+        return self.check_poses(s0.time, s1.time, q0, q1, all_pairs=all_pairs, new_only=new_only)
+
+    def check_finite(self, states, poses, names):
+        """Raise an InputError in the user's terms (the state's NaN or infinite value, else the geom) when some
+        of ``poses`` (one (G, 7) array per state; ``names``: the states as the caller knows them) is not
+        finite."""
+        for state, q, name in zip(states, poses, names):
+            if not np.isfinite(q).all():
+                error = nonfinite_error(state, name)
+                if error is not None:
+                    raise error
+                g = self.geom_ids[np.flatnonzero(~np.isfinite(q).all(axis=1))[0]]
+                raise InputError(f"{name}: the pose of geom {geom_label(self.model, g)!r} is not finite "
+                                 f"(largest |qpos| {np.abs(state.qpos).max():.3g})")
+
+    def pair_intervals(self, k, Q0, Q1):
+        """Every (t_in, t_out) fraction of the step in which pair k touches or overlaps (its geoms' poses Q0 and
+        Q1 at both ends)."""
+        a, b = self.pairs[k]
+        return geom_collision_intervals(self._shape(a), self._motion(a, Q0, Q1), self._shape(b),
+                                        self._motion(b, Q0, Q1))[0]
 
     def check_poses(self, t0, t1, Q0, Q1, *, all_pairs=False, new_only=False):
         """As :meth:`check`, from the geom poses (G, 7) at both ends of a step from time t0 to t1."""
@@ -216,15 +291,18 @@ class GeomChecker:
             raise RuntimeError("GeomChecker: used from two threads at once; give each thread its own checker")
         try:
             out = np.empty((npairs, kn.OUT))
-            gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, 1.0, bool(all_pairs), bool(new_only),
+            gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
+                          bool(new_only),
                           *workspaces(), out)
         finally:
             self._lock.release()
         contacts = []
         counts = dict.fromkeys(COUNTER_NAMES, 0)
         counts["pairs"] = npairs
-        solved = np.flatnonzero(out[:, kn.FAILED] != gb.FILTERED)
-        counts["sphere_culled"] = npairs - len(solved)
+        failed = out[:, kn.FAILED]
+        solved = np.flatnonzero((failed != gb.FILTERED) & (failed != gb.TOO_SLOW))
+        counts["sphere_culled"] = int(np.count_nonzero(failed == gb.FILTERED))
+        counts["too_slow"] = int(np.count_nonzero(failed == gb.TOO_SLOW))
         for k in solved.tolist():
             o = out[k]
             failed = o[kn.FAILED]

@@ -259,8 +259,8 @@ class GuardedStepper:
         contact_step: length of the step taken right after a clamp, as a fraction of the timestep (at
             least half the model's shortest contact time constant, :func:`shortest_contact_time`).
         max_penetration: how deep one step may carry a pair into each other before the guard steps in,
-            as a fraction of the pair's thickness (the sum of the two smallest semi-axes; against a plane,
-            the ellipsoid's smallest semi-axis).  A pair whose
+            as a fraction of the pair's thickness (the sum of the two smallest semi-axes, in geoms mode of the
+            two geoms' smallest radii or half sizes; against a plane, the other's alone).  A pair whose
             relative motion within a step (any point, centre travel plus rotation sweep) stays below
             that depth cannot pass through, so it is left to MuJoCo's own contacts, as Bullet leaves
             bodies below its CCD motion threshold.  0 guards every new contact.  Rigid and affine
@@ -270,7 +270,7 @@ class GuardedStepper:
             kinetic energy involved, beyond the work of actuators and applied forces, is reported with
             ``energy_gain`` (see :class:`GuardReport`).
         mode: what is guarded, as in :class:`~mjccd.mujoco.CCDMonitor`: the geoms themselves (the default with
-            the rigid motion) or their ellipsoids; ``max_penetration`` applies to ellipsoids only.
+            the rigid motion) or their ellipsoids.
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", max_rechecks=32,
@@ -312,6 +312,10 @@ class GuardedStepper:
             # the first step's setup, done here: the current poses recorded, so the first step costs what
             # every other step costs
             self._fast.begin(data)
+        elif self.monitor.geoms is not None:
+            geoms = self.monitor.geoms
+            thin = geoms.thickness()
+            geoms.set_min_motion(self.max_penetration * (thin[geoms.pairs[:, 0]] + thin[geoms.pairs[:, 1]]))
         self._pair_dofs = {}  # (body, body) -> the dofs that move either body (filled at clamps)
         # pieces in contact: none shorter, for their growth, than half the shortest contact time constant
         self._contact_half = 0.5 * shortest_contact_time(model)

@@ -289,14 +289,17 @@ class CCDMonitor:
 
     def _advance_geoms(self, d, advance, counts, counts_before, time_before, step_name):
         """advance_checked in geoms mode: the geoms' poses at both ends, then their exact check."""
-        q0 = self._poses_of(capture(d))
+        s0 = capture(d)
+        q0 = self._poses_of(s0)
         advance()
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
                 or d.time <= time_before or not state_finite(d):
             return self._unstable()
-        q1 = self._poses_of(capture(d))
+        s1 = capture(d)
+        q1 = self._poses_of(s1)
         if not (np.isfinite(q0).all() and np.isfinite(q1).all()):
-            raise InputError(f"{self._names(step_name)[1]}: a geom's pose is not finite")
+            self._geom_poses = None
+            self.geoms.check_finite((s0, s1), (q0, q1), self._names(step_name))
         return self._reported(self.geoms.check_poses(time_before, d.time, q0, q1, all_pairs=self.all_pairs,
                                                      new_only=not self.report_overlapping))
 

@@ -31,6 +31,19 @@ def capture(data):
     return State(data.qpos.copy(), data.mocap_pos.copy(), data.mocap_quat.copy(), float(data.time))
 
 
+def nonfinite_error(state, name):
+    """The :class:`~mjccd.errors.InputError` naming the first NaN or infinite value of ``state``'s qpos and
+    mocap poses in the user's terms (``name``: the state as the caller knows it), or None when all are
+    finite.  MuJoCo checks neither mocap poses nor, without contacts, what they do, so a NaN there reaches
+    the check."""
+    for field in ("qpos", "mocap_pos", "mocap_quat"):
+        values = np.ravel(getattr(state, field))
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            return InputError(f"{name}: {field}[{bad[0]}] is NaN or infinite")
+    return None
+
+
 def as_state(model, value, field, mocap_from=None):
     """A :class:`State` from an ``MjData``, a ``State`` or a qpos vector; errors name ``field``."""
     if isinstance(value, mujoco.MjData):

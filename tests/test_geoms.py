@@ -268,3 +268,36 @@ def test_elements_name_where_they_touch():
                            Box([2.0, 2.0, 1.0]), mjccd.Static([0, 0, 0], IDENTITY))
     assert c.certainty == "certified" and abs(c.time - (2.0 - 0.5 * math.sqrt(2.0)) / 3.0) <= 1e-12
     assert c.elements[0].split()[0] in ("edge", "vertex") and c.elements[1] == "face +z"
+
+
+# ---------------------------------------------------------------- the scanners and intervals
+
+
+@pytest.mark.parametrize("offset", [-0.5, 0.5])
+def test_a_constraint_within_its_bound_of_zero_is_never_proven_either_way(offset):
+    """A bivariate constraint that stays within its error bound of zero everywhere: neither a contact nor its
+    absence is proven (the point proof needs the value below minus the bound)."""
+    from mjccd.geoms import scan
+
+    err = 1e-12
+    C = np.full((1, 3, 4), offset * err)
+    lo, hi, _, _, _ = scan.bfirst_time(C, np.array([2]), np.array([3]), np.array([err]), 1.0)
+    assert lo == 0.0 and hi < 0.0
+
+
+@pytest.mark.parametrize("turn", [0.0, 0.3])
+def test_intervals_of_a_cylinder_passing_through_another_are_certified(turn):
+    """A cylinder (radius 0.2, half length 0.3, turned about x) crosses a wider, taller one (radius 0.5, half
+    length 0.5) along x, 0.1 off its axis, all of it within the wide one's height: they touch when the narrow
+    one's shadow on the xy plane (its rim's ellipse swept along its axis' shadow) meets the disk of radius 0.5;
+    a brute force over that shadow gives both ends."""
+    q = [math.cos(turn / 2), math.sin(turn / 2), 0.0, 0.0]
+    iv, certified = geom_collision_intervals(Cylinder(0.2, 0.3), mjccd.Rigid([-2, 0.1, 0], q, [2, 0.1, 0], q),
+                                             Cylinder(0.5, 0.5), mjccd.Static([0, 0, 0], IDENTITY))
+    p, u = np.meshgrid(np.linspace(0.0, 2.0 * np.pi, 4001), np.linspace(-1.0, 1.0, 401))
+    x = 0.2 * np.cos(p)
+    y = 0.1 + 0.2 * math.cos(turn) * np.sin(p) + 0.3 * math.sin(turn) * u
+    reach = np.max(x + np.sqrt(np.maximum(0.25 - y * y, 0.0)))
+    t_in, t_out = (2.0 - reach) / 4.0, (2.0 + reach) / 4.0
+    assert certified and len(iv) == 1
+    assert abs(iv[0][0] - t_in) <= 1e-6 and abs(iv[0][1] - t_out) <= 1e-6

@@ -296,7 +296,8 @@ def merge_runs(R, n, t_end, out):
     """Merge runs (rows enter_lo, enter_hi, exit_lo, exit_hi, proven) of several systems into the pair's
     intervals of contact: rows (t_in, t_out, in_lo, in_hi, out_lo, out_hi, proven) in ``out``; returns (count,
     certified).  Runs that overlap, or lie within TIME_TOL of each other, are one interval; the interval is
-    certified when both its ends' brackets are within TIME_TOL and some run in it is proven."""
+    certified when both its ends' brackets are within TIME_TOL (one that may last to t_end: proven in contact
+    up to it) and some run in it is proven."""
     order = np.argsort(R[:n, 0])
     m = 0
     certified = True
@@ -325,7 +326,8 @@ def merge_runs(R, n, t_end, out):
             out[m, 1] = 0.5 * (out[m, 4] + out[m, 5]) if out[m, 5] < t_end else t_end
             if lo_in == 0.0:
                 out[m, 0] = 0.0
-            if not proven or out[m, 3] - out[m, 2] > TIME_TOL or (out[m, 5] < t_end and out[m, 5] - out[m, 4] > TIME_TOL):
+            # an interval that may last to t_end is certified only when it is proven to last that long
+            if not proven or out[m, 3] - out[m, 2] > TIME_TOL or out[m, 5] - out[m, 4] > TIME_TOL:
                 certified = False
             m += 1
         else:

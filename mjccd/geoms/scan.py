@@ -374,6 +374,18 @@ def _pop(hs0, hs1, ht0, ht1, hm, n):
 
 
 @_jit
+def _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1):
+    """A clipped box, except along a side where rounding left the clip inverted (on boxes as narrow as the
+    rounding of their own ends): there the box keeps its extent, so that nothing is lost and no box is pushed
+    back unchanged for ever."""
+    if not nt0 <= nt1:
+        nt0, nt1 = t0, t1
+    if not ns0 <= ns1:
+        ns0, ns1 = s0, s1
+    return nt0, nt1, ns0, ns1
+
+
+@_jit
 def _point_proof(C, DS, DT, errs, s, t0, t1):
     """A time in [t0, t1] at which every constraint is proven < 0 at this s, placed past the root in t of the
     constraint largest at t1's left end (found by Newton on the univariate restriction to this s); -1 when
@@ -385,9 +397,9 @@ def _point_proof(C, DS, DT, errs, s, t0, t1):
     row = np.empty(nt_max + 1)
     worst, which = -1e300, -1
     for j in range(J):
-        v = _bvalue(C[j], DS[j], DT[j], s, t0)
-        if v - errs[j] > worst:
-            worst, which = v - errs[j], j
+        v = _bvalue(C[j], DS[j], DT[j], s, t0) + errs[j]  # proven < 0 only when v + its bound is
+        if v > worst:
+            worst, which = v, j
     if worst < 0.0:
         return t0
     # the blocking constraint as a polynomial in t at this s: combine its rows with the Bernstein weights in s
@@ -502,6 +514,7 @@ def bfirst_time(C, DS, DT, errs, t_end):
             nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
             ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
             ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
+            nt0, nt1, ns0, ns1 = _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1)
             shrunk = (nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0)
             t0, t1, s0, s1 = nt0, nt1, ns0, ns1
             if not shrunk or boxes >= MAX_BOXES or (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S):
@@ -740,6 +753,28 @@ def _cover(cov, ncov, t0, t1):
 
 
 @_jit
+def _holds_along(C, DS, DT, errs, s, t0, t1):
+    """True when every bivariate constraint, taken at this s, is proven < 0 on all of [t0, t1] (its Bernstein
+    coefficients in t there below minus its bound)."""
+    nt_max = 0
+    for j in range(C.shape[0]):
+        nt_max = max(nt_max, DT[j])
+    row = np.empty(nt_max + 1)
+    for j in range(C.shape[0]):
+        ds, nt = DS[j], DT[j]
+        for k in range(nt + 1):
+            acc = 0.0
+            for i in range(ds + 1):
+                acc += P.BINOMIALS[ds, i] * s ** i * (1.0 - s) ** (ds - i) * C[j, i, k]
+            row[k] = acc
+        piece = row[:nt + 1]
+        _restrict_coefficients(piece, piece, t0, t1)
+        if not piece.max() < -errs[j]:
+            return False
+    return True
+
+
+@_jit
 def ball_runs(C, DS, DT, errs, t_end, out):
     """Every run of time in [0, t_end] in which some s in [0, 1] may satisfy the bivariate system, as
     :func:`runs_of` rows.  Boxes as in :func:`bfirst_time`, all of them, except those whose times are already
@@ -811,16 +846,21 @@ def ball_runs(C, DS, DT, errs, t_end, out):
             continue
         sm = 0.5 * (s0 + s1)
         if bholds_at(C, DS, DT, errs, sm, t0) == 1:
+            if _holds_along(C, DS, DT, errs, sm, t0, t1):  # the whole time span holds at this s
+                ncov = _cover(cov, ncov, t0, t1)
+                continue
             ncov = _cover(cov, ncov, t0, t0)
         wt, ws = t1 - tl, s1 - sl
         nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
         nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
         ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
         ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
-        if (nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0):
+        nt0, nt1, ns0, ns1 = _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1)
+        if ((nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0)) and boxes < MAX_BOXES:
             n = _push(hs0, hs1, ht0, ht1, hm, n, ns0, ns1, nt0, nt1, mask)
             continue
-        if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= MAX_BOXES or n + 2 > HEAP:
+        # only times matter here: a box as narrow in time as a leaf is one, however wide in s
+        if t1 - t0 <= LEAF or boxes >= MAX_BOXES or n + 2 > HEAP:
             if nund < und.shape[0]:
                 und[nund, 0], und[nund, 1] = t0, t1
                 nund += 1

@@ -737,14 +737,16 @@ def curve_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
         if _bpositive(W, I, b):
             return
         degs[m] = b.shape[0] - 1
-        cons[m, :b.shape[0]] = b
+        for i in range(b.shape[0]):
+            cons[m, i] = b[i]
         m += 1
     if qk != NONE:
         q = _bquadric(W, I, qk, qp, pt)
         if _bpositive(W, I, q):
             return
         degs[m] = q.shape[0] - 1
-        cons[m, :q.shape[0]] = q
+        for i in range(q.shape[0]):
+            cons[m, i] = q[i]
         m += 1
     start = N[0]
     for r in range(m):
@@ -799,6 +801,16 @@ def segment_in_torus(W, I, CON, SYS, SYSR, N, p0, p1, rc, zc, R1, R2, side, r_w)
 
 
 @_jit
+def _homogeneous_direction(d, zero):
+    """The direction d (3 slots) as a homogeneous point of weight ``zero`` (the zero slot)."""
+    out = np.empty(4, dtype=np.int64)
+    for c in range(3):
+        out[c] = d[c]
+    out[3] = zero
+    return out
+
+
+@_jit
 def _ellipsoid_form(W, I, rad, U, V):
     """sum U_i V_i / r_i^2 - Uw Vw in the ellipsoid's frame (U, V homogeneous, 4 slots)."""
     return _bilinear(W, I, ELLIPSOIDAL, np.array([0.0, rad[0], rad[1], rad[2], 0.0, 0.0, 0.0]), U, V)
@@ -817,11 +829,8 @@ def face_section(W, I, CON, SYS, SYSR, N, H, rad, axis, sign, h, size, disk, sid
     da, db = np.zeros(3), np.zeros(3)
     da[a], db[b] = 1.0, 1.0
     zero = P.const(W, I, 0.0)
-    A = np.empty(4, dtype=np.int64)
-    B = np.empty(4, dtype=np.int64)
-    A[:3] = fr.direction(W, I, H, da[0], da[1], da[2])
-    B[:3] = fr.direction(W, I, H, db[0], db[1], db[2])
-    A[3] = B[3] = zero
+    A = _homogeneous_direction(fr.direction(W, I, H, da[0], da[1], da[2]), zero)
+    B = _homogeneous_direction(fr.direction(W, I, H, db[0], db[1], db[2]), zero)
     Muu, Muv, Mvv = _ellipsoid_form(W, I, rad, A, A), _ellipsoid_form(W, I, rad, A, B), _ellipsoid_form(W, I, rad, B, B)
     mu, mv, m11 = _ellipsoid_form(W, I, rad, A, C0), _ellipsoid_form(W, I, rad, B, C0), _ellipsoid_form(W, I, rad, C0, C0)
     det = P.add(W, I, P.mul(W, I, Muu, Mvv), P.sq(W, I, Muv), -1.0)
@@ -872,9 +881,7 @@ def lateral_shadow(W, I, CON, SYS, SYSR, N, H, rad, r, h, side):
     discriminant beta^2 - alpha gamma >= 0 and beta^2 <= h^2 w^2 alpha^2, with alpha the axis's quadratic
     form, beta its pairing with the circle's point, gamma the point's form (w the point's weight)."""
     zero = P.const(W, I, 0.0)
-    D = np.empty(4, dtype=np.int64)
-    D[:3] = fr.direction(W, I, H, 0.0, 0.0, 1.0)
-    D[3] = zero
+    D = _homogeneous_direction(fr.direction(W, I, H, 0.0, 0.0, 1.0), zero)
     alpha = _ellipsoid_form(W, I, rad, D, D)
     # the same circle's points in its own frame carry the weights (their third coordinate is 0)
     for chart in range(2):

@@ -42,10 +42,10 @@ def test_resting_bodies_touch_at_the_step_start_and_are_never_new_contacts():
         assert new_only.step() is None
 
 
+@pytest.mark.dm_control
 def test_no_pair_is_dropped_because_its_ellipsoids_overlap_at_qpos0():
     """dm-control's cartpole: MuJoCo collides the rails with the cart and the pole; the bounding ellipsoids of those
     bodies overlap in the reference pose, which drops the pairs in ellipsoid mode, never in geoms mode."""
-    pytest.importorskip("dm_control")
     from dm_control import suite
 
     physics = suite.load("cartpole", "swingup", task_kwargs={"random": 0}).physics

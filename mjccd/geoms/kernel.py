@@ -18,9 +18,9 @@ from mjccd.geoms import systems as sy
 from mjccd.geoms.poly import _jit
 
 TIME_TOL = 1e-9             # a first contact is certified when its proven bracket is this narrow
-OUT = 17                    # fields of a pair's answer, see pair_kernel
-STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED, TIER = (
-    0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15, 16)
+OUT = 18                    # fields of a pair's answer, see pair_kernel
+STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER, FAILED, TIER, PROVEN = (
+    0, 1, 2, 3, 4, 5, 8, 11, 12, 13, 14, 15, 16, 17)
 NOT_HANDLED, OVERFLOW, PARTIAL = 1.0, 2.0, 3.0  # values of out[FAILED]; PARTIAL: the ellipsoid solver adds more
 
 
@@ -129,6 +129,17 @@ def _systems_of(W, I, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b):
     FA = fr.chain_frame(W, I, rows_a)
     FB = fr.chain_frame(W, I, rows_b)
     code = sy.build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB)
+    C, DS, DT, errs = constraints_of(W, I, CON, N)
+    if code != 0 and (N[2] or P.failed(I)):
+        code = -1
+    return FA, FB, C, DS, DT, errs, code
+
+
+@_jit
+def constraints_of(W, I, CON, N):
+    """The store's constraints as arrays: (C, DS, DT, errs), each constraint's double coefficients C (rows in
+    s, columns in t, every row elevated to its degree in t), its degrees in s and t and the bound of their
+    error, the rounding of the restriction and evaluation in s included."""
     ncon = N[0]
     ds_max, nt_max = 0, 0
     for c in range(ncon):
@@ -158,9 +169,7 @@ def _systems_of(W, I, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b):
                 for q in range(DT[c] + 1):
                     big = max(big, abs(C[c, i, q]))
             errs[c] += P.gamma(10 * DS[c] + 8) * (big + errs[c])
-    if code != 0 and (N[2] or P.failed(I)):
-        code = -1
-    return FA, FB, C, DS, DT, errs, code
+    return C, DS, DT, errs
 
 
 @_jit
@@ -174,32 +183,44 @@ def _elevated(W, I, k, n):
 
 
 @_jit
-def _scan_all(SYS, N, C, DS, DT, errs, t_end, out):
-    """Status at t = 0 and first contact over all systems into out; returns the winning system (-1: none)
-    and the s at which it holds (bivariate systems)."""
-    nsys = N[1]
-    out[SYSTEMS] = nsys
+def status_of_systems(SYS, N, C, DS, DT, errs):
+    """The pair's status at t = 0 from its systems: 1 (separate) when each is proven not to hold there, -1
+    (overlapping) when one is proven to hold, else 0 (touching: undecided within rounding)."""
     status0 = 1
-    for k in range(nsys):
+    for k in range(N[1]):
         s0, cnt = SYS[k, 0], SYS[k, 1]
         if SYS[k, 3] == 0:
             st = sc.status_at_start(np.ascontiguousarray(C[s0:s0 + cnt, 0, :]), errs[s0:s0 + cnt])
         else:
             st = _bstatus_at_start(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt])
         if st == -1:
-            status0 = -1
-            break
+            return -1
         if st == 0:
             status0 = 0
-    out[STATUS] = status0
+    return status0
+
+
+@_jit
+def scan_systems(SYS, N, C, DS, DT, errs, t_end, out, decide):
+    """Status at t = 0 (with ``decide``; else out[STATUS] = 1 and every system is scanned from 0, the caller
+    deciding the start) and first contact over all systems into out (out[PROVEN] = 1 when some time is
+    proven to satisfy a system); returns the winning system (-1: none) and the s at which it holds (bivariate
+    systems)."""
+    out[SYSTEMS] = N[1]
     out[CERTIFIED] = 0.0
-    if status0 != 1:
-        out[LO] = out[HI] = out[TIME] = 0.0
-        out[CERTIFIED] = 1.0
-        return -1, 0.5
+    out[PROVEN] = 0.0
+    out[STATUS] = 1.0
+    if decide:
+        status0 = status_of_systems(SYS, N, C, DS, DT, errs)
+        out[STATUS] = status0
+        if status0 != 1:
+            out[LO] = out[HI] = out[TIME] = 0.0
+            out[CERTIFIED] = 1.0
+            out[PROVEN] = 1.0 if status0 == -1 else 0.0
+            return -1, 0.5
     lo, hi, band_end = -1.0, -1.0, -1.0
     best, best_est, best_s = -1, 2.0, 0.5
-    for k in range(nsys):
+    for k in range(N[1]):
         s0, cnt = SYS[k, 0], SYS[k, 1]
         limit = hi if hi >= 0.0 else t_end
         if SYS[k, 3] == 0:
@@ -224,6 +245,7 @@ def _scan_all(SYS, N, C, DS, DT, errs, t_end, out):
         return -1, 0.5
     if hi >= 0.0:
         out[HI] = hi
+        out[PROVEN] = 1.0
         out[CERTIFIED] = 1.0 if hi - lo <= TIME_TOL else 0.0
     else:
         out[HI] = max(band_end, lo)
@@ -280,7 +302,7 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
             return
         out[FAILED] = PARTIAL if code == sy.PARTIAL else 0.0
         out[TIER] = tier
-        best, s_best = _scan_all(SYS, N, C, DS, DT, errs, t_end, out)
+        best, s_best = scan_systems(SYS, N, C, DS, DT, errs, t_end, out, True)
         if out[CERTIFIED] > 0.0 or tier == 1:
             if best >= 0:
                 _contact(Wt, It, SYS, SYSR, best, s_best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],
@@ -350,17 +372,14 @@ def pair_runs(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, S
         R = np.empty((N[1] * 8 + 8, sc.RUN_FIELDS))
         n = 0
         part = np.empty((MAX_RUNS, sc.RUN_FIELDS))
-        status0 = 1
+        status0 = status_of_systems(SYS, N, C, DS, DT, errs)
         for k in range(N[1]):
             s0, cnt = SYS[k, 0], SYS[k, 1]
             if SYS[k, 3] == 0:
-                cc = np.ascontiguousarray(C[s0:s0 + cnt, 0, :])
-                st = sc.status_at_start(cc, errs[s0:s0 + cnt])
-                m = sc.all_runs(cc, DT[s0:s0 + cnt], errs[s0:s0 + cnt], t_end, part)
+                m = sc.all_runs(np.ascontiguousarray(C[s0:s0 + cnt, 0, :]), DT[s0:s0 + cnt], errs[s0:s0 + cnt],
+                                t_end, part)
             else:
-                st = _bstatus_at_start(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt])
                 m = sc.ball_runs(C[s0:s0 + cnt], DS[s0:s0 + cnt], DT[s0:s0 + cnt], errs[s0:s0 + cnt], t_end, part)
-            status0 = min(status0, st)  # overlapping (-1) before touching (0) before separate (1)
             for q in range(m):
                 if n < R.shape[0]:
                     for f in range(sc.RUN_FIELDS):

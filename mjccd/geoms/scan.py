@@ -20,7 +20,6 @@ minus its bound), so the first time the system holds lies in [lo, hi].  A
 tangential touch (a double root) leaves a band whose width is what the
 rounding allows; nothing is ever guessed.
 """
-import math
 
 import numpy as np
 
@@ -151,6 +150,69 @@ FORCED = 1 << 62        # a piece marked so is a band around a computed root: a 
 
 
 @_jit
+def _examine_piece(C, D, errs, a, b, mask, buf, hull):
+    """One look at the piece [a, b]: each constraint not yet proven negative on it (bit j of ``mask`` clear)
+    restricted to it (into ``buf``).  Returns (undecided, mask, which, alpha, beta, left): undecided -1 when
+    some constraint is proven positive on the piece (or the clip leaves nothing), else how many are neither
+    proven positive nor negative, the last of them ``which``; ``mask`` gains those proven negative; [alpha,
+    beta] the clip (fractions of the restricted piece, whose left end is ``left``) to where each undecided
+    constraint's convex hull can reach zero."""
+    undecided = 0
+    which = -1
+    alpha, beta = 0.0, 1.0
+    left = 0.0
+    for j in range(C.shape[0]):
+        if (mask >> j) & 1:
+            continue
+        row = buf[j, :D[j] + 1]
+        left = _restrict_coefficients(C[j], row, a, b)
+        if row.min() > errs[j]:
+            return -1, mask, which, alpha, beta, left
+        if row.max() < -errs[j]:
+            mask |= 1 << j
+            continue
+        undecided += 1
+        which = j
+        al, be = _sublevel(row, errs[j], hull)
+        alpha = max(alpha, al)
+        beta = min(beta, be)
+    if alpha > beta:
+        return -1, mask, which, alpha, beta, left
+    return undecided, mask, which, alpha, beta, left
+
+
+@_jit
+def _split_piece(C, D, errs, a, b, mask, undecided, which, entering_only, sa, sb, sm, top):
+    """Push the parts of the undecided piece [a, b] on the stack (sa, sb, sm; returns its new top): around the
+    computed root of its one undecided constraint when that one changes sign across the piece (only from
+    positive to not, with ``entering_only``), as the part right of the root's band, the band (FORCED: a leaf
+    unless proven either way) and the part left of it; else its two halves."""
+    if undecided == 1:
+        c = C[which, :D[which] + 1]
+        va, _ = _value_slope(c, a)
+        vb, _ = _value_slope(c, b)
+        if entering_only:
+            crossing = va > 0.0 and vb <= 0.0
+        else:
+            crossing = (va > 0.0) != (vb > 0.0) and va != 0.0 and vb != 0.0
+        if crossing:
+            r = _root_between(c, a, b) if vb != 0.0 else b
+            _, slope = _value_slope(c, r)
+            width = 4.0 * EPS * r + 1e-300
+            if slope != 0.0:
+                width += 1.5 * errs[which] / abs(slope)
+            if a < r - width and r + width < b and 2.0 * width < 0.25 * (b - a):
+                sa[top], sb[top], sm[top] = r + width, b, mask
+                sa[top + 1], sb[top + 1], sm[top + 1] = r - width, r + width, mask | FORCED
+                sa[top + 2], sb[top + 2], sm[top + 2] = a, r - width, mask
+                return top + 3
+    mid = 0.5 * (a + b)
+    sa[top], sb[top], sm[top] = mid, b, mask
+    sa[top + 1], sb[top + 1], sm[top + 1] = a, mid, mask
+    return top + 2
+
+
+@_jit
 def first_time(C, D, errs, t_end):
     """The first time in [0, t_end] at which every constraint (coefficients C, degrees D, bounds errs) is <= 0.
 
@@ -182,31 +244,9 @@ def first_time(C, D, errs, t_end):
             continue
         while True:  # clip [a, b] until it stops shrinking
             pieces += 1
-            infeasible = False
-            undecided = 0
-            which = -1
-            alpha, beta = 0.0, 1.0
-            left = 0.0
-            for j in range(J):
-                if (mask >> j) & 1:
-                    continue
-                row = buf[j, :D[j] + 1]
-                left = _restrict_coefficients(C[j], row, a, b)
-                mn = row.min()
-                mx = row.max()
-                if mn > errs[j]:
-                    infeasible = True
-                    break
-                if mx < -errs[j]:
-                    mask |= 1 << j
-                    continue
-                undecided += 1
-                which = j
-                al, be = _sublevel(row, errs[j], hull)
-                alpha = max(alpha, al)
-                beta = min(beta, be)
-            if infeasible or alpha > beta:
-                infeasible = True
+            undecided, mask, which, alpha, beta, left = _examine_piece(C, D, errs, a, b, mask, buf, hull)
+            infeasible = undecided < 0
+            if infeasible:
                 break
             if undecided == 0 or forced:
                 break
@@ -237,29 +277,7 @@ def first_time(C, D, errs, t_end):
                 hi = b
                 break
             continue
-        split = False
-        if undecided == 1:
-            c = C[which, :D[which] + 1]
-            va, _ = _value_slope(c, a)
-            vb, _ = _value_slope(c, b)
-            if va > 0.0 and vb <= 0.0:
-                r = _root_between(c, a, b) if vb < 0.0 else b
-                _, slope = _value_slope(c, r)
-                width = 4.0 * EPS * r + 1e-300
-                if slope != 0.0:
-                    width += 1.5 * errs[which] / abs(slope)
-                if a < r - width and r + width < b and 2.0 * width < 0.25 * (b - a):
-                    # right of the band, the band itself (a leaf unless proven), left of the band
-                    sa[top], sb[top], sm[top] = r + width, b, mask
-                    sa[top + 1], sb[top + 1], sm[top + 1] = r - width, r + width, mask | FORCED
-                    sa[top + 2], sb[top + 2], sm[top + 2] = a, r - width, mask
-                    top += 3
-                    split = True
-        if not split:
-            mid = 0.5 * (a + b)
-            sa[top], sb[top], sm[top] = mid, b, mask
-            sa[top + 1], sb[top + 1], sm[top + 1] = a, mid, mask
-            top += 2
+        top = _split_piece(C, D, errs, a, b, mask, undecided, which, True, sa, sb, sm, top)
     return lo, hi, est, band_end
 
 
@@ -326,6 +344,23 @@ def bholds_at(C, DS, DT, errs, s, t):
 
 
 @_jit
+def _box_scratch(C, DS, DT):
+    """Scratch arrays of the bivariate scans: (buf, scol, env, hull, clip) for :func:`_examine`."""
+    ds_max, nt_max = 0, 0
+    for j in range(C.shape[0]):
+        ds_max = max(ds_max, DS[j])
+        nt_max = max(nt_max, DT[j])
+    return (np.empty((C.shape[0], ds_max + 1, nt_max + 1)), np.empty(ds_max + 1), np.empty(max(ds_max, nt_max) + 1),
+            np.empty(max(ds_max, nt_max) + 1, dtype=np.int64), np.empty(4))
+
+
+@_jit
+def _heap():
+    """An empty heap of boxes (s0, s1, t0, t1, mask; see :func:`_push`)."""
+    return np.empty(HEAP), np.empty(HEAP), np.empty(HEAP), np.empty(HEAP), np.empty(HEAP, dtype=np.int64)
+
+
+@_jit
 def _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask):
     """Push a box on the binary min-heap keyed by t0; returns the new size (unchanged when full)."""
     if n >= hs0.shape[0]:
@@ -371,6 +406,95 @@ def _pop(hs0, hs1, ht0, ht1, hm, n):
         hm[m], hm[i] = hm[i], hm[m]
         i = m
     return last
+
+
+@_jit
+def _examine(C, DS, DT, errs, s0, s1, t0, t1, mask, buf, scol, env, hull, clip):
+    """One look at the box [s0, s1] x [t0, t1]: each constraint not yet proven negative on it (bit j of ``mask``
+    clear) restricted to it (into ``buf``).  Returns (undecided, mask): undecided -1 when some constraint is
+    proven positive on the box (or the clip below leaves nothing), 0 when every one is proven negative, else
+    how many are neither; ``mask`` gains the constraints proven negative.  clip (4,) = the box (t0, t1, s0,
+    s1) clipped to where the lower envelopes of every undecided constraint (over s as a polynomial in t, over
+    t as one in s) can reach zero."""
+    undecided = 0
+    a_t, b_t, a_s, b_s = 0.0, 1.0, 0.0, 1.0
+    sl, tl = 0.0, 0.0
+    for j in range(C.shape[0]):
+        if (mask >> j) & 1:
+            continue
+        ds, nt = DS[j], DT[j]
+        box = buf[j]
+        sl, tl = _restrict2(C[j], ds, nt, s0, s1, t0, t1, box, scol)
+        mn, mx = box[0, 0], box[0, 0]
+        for i in range(ds + 1):
+            for k in range(nt + 1):
+                mn = min(mn, box[i, k])
+                mx = max(mx, box[i, k])
+        if mn > errs[j]:
+            return -1, mask
+        if mx < -errs[j]:
+            mask |= 1 << j
+            continue
+        undecided += 1
+        for k in range(nt + 1):  # lower envelope over s, as a polynomial in t
+            m = box[0, k]
+            for i in range(1, ds + 1):
+                m = min(m, box[i, k])
+            env[k] = m
+        al, be = _sublevel(env[:nt + 1], errs[j], hull)
+        a_t, b_t = max(a_t, al), min(b_t, be)
+        for i in range(ds + 1):  # lower envelope over t, as a polynomial in s
+            m = box[i, 0]
+            for k in range(1, nt + 1):
+                m = min(m, box[i, k])
+            env[i] = m
+        al, be = _sublevel(env[:ds + 1], errs[j], hull)
+        a_s, b_s = max(a_s, al), min(b_s, be)
+    if a_t > b_t or a_s > b_s:
+        return -1, mask
+    wt, ws = t1 - tl, s1 - sl
+    # widened by the rounding of the clip's own arithmetic before it is trusted
+    nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
+    nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
+    ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
+    ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
+    clip[0], clip[1], clip[2], clip[3] = _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1)
+    return undecided, mask
+
+
+@_jit
+def _shrunk(clip, s0, s1, t0, t1):
+    """Whether the clip keeps less than SHRINK of the box along one side (worth clipping again)."""
+    return (clip[1] - clip[0]) < SHRINK * (t1 - t0) or (clip[3] - clip[2]) < SHRINK * (s1 - s0)
+
+
+@_jit
+def _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf):
+    """Push the two halves of a box: in s when the undecided constraints' coefficients (``buf``) vary more along
+    s than along t (the envelope over s is what keeps the box from being clipped away) or the box is a leaf
+    wide in time, else in t.  Returns the heap's new size."""
+    vs, vt = 0.0, 0.0
+    for j in range(DS.shape[0]):
+        if (mask >> j) & 1:
+            continue
+        box = buf[j]
+        for k in range(DT[j] + 1):
+            lo_, hi_ = box[0, k], box[0, k]
+            for i in range(1, DS[j] + 1):
+                lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+            vs = max(vs, hi_ - lo_)
+        for i in range(DS[j] + 1):
+            lo_, hi_ = box[i, 0], box[i, 0]
+            for k in range(1, DT[j] + 1):
+                lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
+            vt = max(vt, hi_ - lo_)
+    if s1 - s0 > LEAF_S and (vs > vt or t1 - t0 <= LEAF):
+        smid = 0.5 * (s0 + s1)
+        n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
+        return _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
+    tm = 0.5 * (t0 + t1)
+    n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
+    return _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
 
 
 @_jit
@@ -427,8 +551,9 @@ def _point_proof(C, DS, DT, errs, s, t0, t1):
 
 
 @_jit
-def bfirst_time(C, DS, DT, errs, t_end):
-    """The first time in [0, t_end] at which some s in [0, 1] makes every bivariate constraint <= 0.
+def bfirst_time(C, DS, DT, errs, t_end, max_boxes=MAX_BOXES):
+    """The first time in [0, t_end] at which some s in [0, 1] makes every bivariate constraint <= 0, examining at
+    most about ``max_boxes`` boxes (the rest stays undecided).
 
     ``C[j, :DS[j]+1, :DT[j]+1]``: constraint j's coefficients (rows in s,
     columns in t).  Boxes of (s, t) are taken earliest first from a heap;
@@ -442,18 +567,8 @@ def bfirst_time(C, DS, DT, errs, t_end):
     s_estimate) as :func:`first_time`, with the s of the point that proved
     contact.
     """
-    J = C.shape[0]
-    ds_max, nt_max = 0, 0
-    for j in range(J):
-        ds_max = max(ds_max, DS[j])
-        nt_max = max(nt_max, DT[j])
-    buf = np.empty((J, ds_max + 1, nt_max + 1))
-    scol = np.empty(ds_max + 1)
-    env = np.empty(max(ds_max, nt_max) + 1)
-    hull = np.empty(max(ds_max, nt_max) + 1, dtype=np.int64)
-    hs0, hs1 = np.empty(HEAP), np.empty(HEAP)
-    ht0, ht1 = np.empty(HEAP), np.empty(HEAP)
-    hm = np.empty(HEAP, dtype=np.int64)
+    buf, scol, env, hull, clip = _box_scratch(C, DS, DT)
+    hs0, hs1, ht0, ht1, hm = _heap()
     n = _push(hs0, hs1, ht0, ht1, hm, 0, 0.0, 1.0, 0.0, t_end, 0)
     hi, est, band_end, s_est = -1.0, -1.0, -1.0, 0.5
     leaf_lo = -1.0
@@ -465,61 +580,16 @@ def bfirst_time(C, DS, DT, errs, t_end):
             n += 1  # put it back: it bounds what is left
             break
         undecided = 0
-        infeasible = False
         while True:
             boxes += 1
-            infeasible = False
-            undecided = 0
-            a_t, b_t, a_s, b_s = 0.0, 1.0, 0.0, 1.0
-            sl, tl = 0.0, 0.0
-            for j in range(J):
-                if (mask >> j) & 1:
-                    continue
-                ds, nt = DS[j], DT[j]
-                box = buf[j]
-                sl, tl = _restrict2(C[j], ds, nt, s0, s1, t0, t1, box, scol)
-                mn, mx = box[0, 0], box[0, 0]
-                for i in range(ds + 1):
-                    for k in range(nt + 1):
-                        mn = min(mn, box[i, k])
-                        mx = max(mx, box[i, k])
-                if mn > errs[j]:
-                    infeasible = True
-                    break
-                if mx < -errs[j]:
-                    mask |= 1 << j
-                    continue
-                undecided += 1
-                for k in range(nt + 1):  # lower envelope over s, as a polynomial in t
-                    m = box[0, k]
-                    for i in range(1, ds + 1):
-                        m = min(m, box[i, k])
-                    env[k] = m
-                al, be = _sublevel(env[:nt + 1], errs[j], hull)
-                a_t, b_t = max(a_t, al), min(b_t, be)
-                for i in range(ds + 1):  # lower envelope over t, as a polynomial in s
-                    m = box[i, 0]
-                    for k in range(1, nt + 1):
-                        m = min(m, box[i, k])
-                    env[i] = m
-                al, be = _sublevel(env[:ds + 1], errs[j], hull)
-                a_s, b_s = max(a_s, al), min(b_s, be)
-            if infeasible or a_t > b_t or a_s > b_s:
-                infeasible = True
+            undecided, mask = _examine(C, DS, DT, errs, s0, s1, t0, t1, mask, buf, scol, env, hull, clip)
+            if undecided <= 0:
                 break
-            if undecided == 0:
+            shrunk = _shrunk(clip, s0, s1, t0, t1)
+            t0, t1, s0, s1 = clip[0], clip[1], clip[2], clip[3]
+            if not shrunk or boxes >= max_boxes or (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S):
                 break
-            wt, ws = t1 - tl, s1 - sl
-            nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
-            nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
-            ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
-            ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
-            nt0, nt1, ns0, ns1 = _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1)
-            shrunk = (nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0)
-            t0, t1, s0, s1 = nt0, nt1, ns0, ns1
-            if not shrunk or boxes >= MAX_BOXES or (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S):
-                break
-        if infeasible:
+        if undecided < 0:
             continue
         if hi >= 0.0 and t0 >= hi:
             continue
@@ -531,37 +601,13 @@ def bfirst_time(C, DS, DT, errs, t_end):
         if tp >= 0.0 and (hi < 0.0 or tp < hi):
             hi, s_est = tp, sm
             t1 = min(t1, tp)
-        if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= MAX_BOXES or n + 2 > HEAP:
+        if (t1 - t0 <= LEAF and s1 - s0 <= LEAF_S) or boxes >= max_boxes or n + 2 > HEAP:
             if leaf_lo < 0.0 or t0 < leaf_lo:
                 leaf_lo = t0
                 est = 0.5 * (t0 + t1)
             band_end = max(band_end, t1)
             continue
-        # split the direction along which the coefficients of the undecided constraints vary most: in s when
-        # the envelope over s is what keeps the box from being clipped away
-        vs, vt = 0.0, 0.0
-        for j in range(J):
-            if (mask >> j) & 1:
-                continue
-            box = buf[j]
-            for k in range(DT[j] + 1):
-                lo_, hi_ = box[0, k], box[0, k]
-                for i in range(1, DS[j] + 1):
-                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
-                vs = max(vs, hi_ - lo_)
-            for i in range(DS[j] + 1):
-                lo_, hi_ = box[i, 0], box[i, 0]
-                for k in range(1, DT[j] + 1):
-                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
-                vt = max(vt, hi_ - lo_)
-        if s1 - s0 > LEAF_S and (vs > vt or t1 - t0 <= LEAF):
-            smid = 0.5 * (s0 + s1)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
-        else:
-            tm = 0.5 * (t0 + t1)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
+        n = _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf)
     # the earliest box left unresolved bounds the answer from below
     lo = leaf_lo
     if n > 0:
@@ -660,30 +706,8 @@ def all_runs(C, D, errs, t_end, out):
             continue
         forced = (mask & FORCED) != 0
         pieces += 1
-        infeasible = False
-        undecided = 0
-        which = -1
-        alpha, beta = 0.0, 1.0
-        left = 0.0
-        for j in range(J):
-            if (mask >> j) & 1:
-                continue
-            row = buf[j, :D[j] + 1]
-            left = _restrict_coefficients(C[j], row, a, b)
-            mn = row.min()
-            mx = row.max()
-            if mn > errs[j]:
-                infeasible = True
-                break
-            if mx < -errs[j]:
-                mask |= 1 << j
-                continue
-            undecided += 1
-            which = j
-            al, be = _sublevel(row, errs[j], hull)
-            alpha = max(alpha, al)
-            beta = min(beta, be)
-        if infeasible or alpha > beta:
+        undecided, mask, which, alpha, beta, left = _examine_piece(C, D, errs, a, b, mask, buf, hull)
+        if undecided < 0:
             nseg = _emit(seg, nseg, a, b, INF)
             continue
         if undecided == 0:
@@ -704,28 +728,7 @@ def all_runs(C, D, errs, t_end, out):
             sa[top], sb[top], sm[top] = na, nb, mask
             top += 1
             continue
-        split = False
-        if undecided == 1:
-            c = C[which, :D[which] + 1]
-            va, _ = _value_slope(c, a)
-            vb, _ = _value_slope(c, b)
-            if (va > 0.0) != (vb > 0.0) and va != 0.0 and vb != 0.0:
-                r = _root_between(c, a, b)
-                _, slope = _value_slope(c, r)
-                width = 4.0 * EPS * r + 1e-300
-                if slope != 0.0:
-                    width += 1.5 * errs[which] / abs(slope)
-                if a < r - width and r + width < b and 2.0 * width < 0.25 * (b - a):
-                    sa[top], sb[top], sm[top] = r + width, b, mask
-                    sa[top + 1], sb[top + 1], sm[top + 1] = r - width, r + width, mask | FORCED
-                    sa[top + 2], sb[top + 2], sm[top + 2] = a, r - width, mask
-                    top += 3
-                    split = True
-        if not split:
-            mid = 0.5 * (a + b)
-            sa[top], sb[top], sm[top] = mid, b, mask
-            sa[top + 1], sb[top + 1], sm[top + 1] = a, mid, mask
-            top += 2
+        top = _split_piece(C, D, errs, a, b, mask, undecided, which, False, sa, sb, sm, top)
     return runs_of(seg, nseg, t_end, out)
 
 
@@ -780,18 +783,8 @@ def ball_runs(C, DS, DT, errs, t_end, out):
     :func:`runs_of` rows.  Boxes as in :func:`bfirst_time`, all of them, except those whose times are already
     proven to hold (by a box where every constraint is negative, or a point proof); the times of the boxes
     left undecided, and those proven, are then swept in order."""
-    J = C.shape[0]
-    ds_max, nt_max = 0, 0
-    for j in range(J):
-        ds_max = max(ds_max, DS[j])
-        nt_max = max(nt_max, DT[j])
-    buf = np.empty((J, ds_max + 1, nt_max + 1))
-    scol = np.empty(ds_max + 1)
-    env = np.empty(max(ds_max, nt_max) + 1)
-    hull = np.empty(max(ds_max, nt_max) + 1, dtype=np.int64)
-    hs0, hs1 = np.empty(HEAP), np.empty(HEAP)
-    ht0, ht1 = np.empty(HEAP), np.empty(HEAP)
-    hm = np.empty(HEAP, dtype=np.int64)
+    buf, scol, env, hull, clip = _box_scratch(C, DS, DT)
+    hs0, hs1, ht0, ht1, hm = _heap()
     cov = np.empty((256, 2))
     ncov = 0
     und = np.empty((MAX_SEGMENTS, 2))
@@ -804,42 +797,8 @@ def ball_runs(C, DS, DT, errs, t_end, out):
         if _covered(cov, ncov, t0, t1):
             continue
         boxes += 1
-        infeasible = False
-        undecided = 0
-        a_t, b_t, a_s, b_s = 0.0, 1.0, 0.0, 1.0
-        sl, tl = 0.0, 0.0
-        for j in range(J):
-            if (mask >> j) & 1:
-                continue
-            box = buf[j]
-            sl, tl = _restrict2(C[j], DS[j], DT[j], s0, s1, t0, t1, box, scol)
-            mn, mx = box[0, 0], box[0, 0]
-            for i in range(DS[j] + 1):
-                for k in range(DT[j] + 1):
-                    mn = min(mn, box[i, k])
-                    mx = max(mx, box[i, k])
-            if mn > errs[j]:
-                infeasible = True
-                break
-            if mx < -errs[j]:
-                mask |= 1 << j
-                continue
-            undecided += 1
-            for k in range(DT[j] + 1):
-                m = box[0, k]
-                for i in range(1, DS[j] + 1):
-                    m = min(m, box[i, k])
-                env[k] = m
-            al, be = _sublevel(env[:DT[j] + 1], errs[j], hull)
-            a_t, b_t = max(a_t, al), min(b_t, be)
-            for i in range(DS[j] + 1):
-                m = box[i, 0]
-                for k in range(1, DT[j] + 1):
-                    m = min(m, box[i, k])
-                env[i] = m
-            al, be = _sublevel(env[:DS[j] + 1], errs[j], hull)
-            a_s, b_s = max(a_s, al), min(b_s, be)
-        if infeasible or a_t > b_t or a_s > b_s:
+        undecided, mask = _examine(C, DS, DT, errs, s0, s1, t0, t1, mask, buf, scol, env, hull, clip)
+        if undecided < 0:
             continue
         if undecided == 0:
             ncov = _cover(cov, ncov, t0, t1)
@@ -850,14 +809,8 @@ def ball_runs(C, DS, DT, errs, t_end, out):
                 ncov = _cover(cov, ncov, t0, t1)
                 continue
             ncov = _cover(cov, ncov, t0, t0)
-        wt, ws = t1 - tl, s1 - sl
-        nt0 = max(tl + max(a_t - 1e-12, 0.0) * wt, t0)
-        nt1 = min(tl + min(b_t + 1e-12, 1.0) * wt, t1)
-        ns0 = max(sl + max(a_s - 1e-12, 0.0) * ws, s0)
-        ns1 = min(sl + min(b_s + 1e-12, 1.0) * ws, s1)
-        nt0, nt1, ns0, ns1 = _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1)
-        if ((nt1 - nt0) < SHRINK * (t1 - t0) or (ns1 - ns0) < SHRINK * (s1 - s0)) and boxes < MAX_BOXES:
-            n = _push(hs0, hs1, ht0, ht1, hm, n, ns0, ns1, nt0, nt1, mask)
+        if _shrunk(clip, s0, s1, t0, t1) and boxes < MAX_BOXES:
+            n = _push(hs0, hs1, ht0, ht1, hm, n, clip[2], clip[3], clip[0], clip[1], mask)
             continue
         # only times matter here: a box as narrow in time as a leaf is one, however wide in s
         if t1 - t0 <= LEAF or boxes >= MAX_BOXES or n + 2 > HEAP:
@@ -865,29 +818,7 @@ def ball_runs(C, DS, DT, errs, t_end, out):
                 und[nund, 0], und[nund, 1] = t0, t1
                 nund += 1
             continue
-        vs, vt = 0.0, 0.0
-        for j in range(J):
-            if (mask >> j) & 1:
-                continue
-            box = buf[j]
-            for k in range(DT[j] + 1):
-                lo_, hi_ = box[0, k], box[0, k]
-                for i in range(1, DS[j] + 1):
-                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
-                vs = max(vs, hi_ - lo_)
-            for i in range(DS[j] + 1):
-                lo_, hi_ = box[i, 0], box[i, 0]
-                for k in range(1, DT[j] + 1):
-                    lo_, hi_ = min(lo_, box[i, k]), max(hi_, box[i, k])
-                vt = max(vt, hi_ - lo_)
-        if s1 - s0 > LEAF_S and (vs > vt or t1 - t0 <= LEAF):
-            smid = 0.5 * (s0 + s1)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, smid, t0, t1, mask)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, smid, s1, t0, t1, mask)
-        else:
-            tm = 0.5 * (t0 + t1)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, tm, mask)
-            n = _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
+        n = _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf)
     for q in range(n):  # boxes the limits left unexamined are undecided
         if nund < und.shape[0]:
             und[nund, 0], und[nund, 1] = ht0[q], ht1[q]

@@ -1,5 +1,6 @@
 """Geoms mode in the MuJoCo layer (mjccd.mujoco.geoms): which geoms are real, MuJoCo's pair rules on them, meshes,
 resting contacts, the guard, and the answers against MuJoCo's own signed distance."""
+import pathlib
 import warnings
 
 import mujoco
@@ -10,6 +11,8 @@ from mjccd.mujoco import CCDMonitor, GuardedStepper, fit_model
 from mjccd.mujoco.geoms import GeomChecker, real_geoms
 from mjccd.mujoco.motions import capture
 from mjccd.mujoco.warnings import CoverageWarning
+
+ROOT = pathlib.Path(__file__).parents[1]
 
 RESTING = """
 <mujoco>
@@ -158,3 +161,34 @@ def test_first_contacts_lie_where_mujoco_measures_zero_distance(seed):
                 assert dist[1] > -1e-6, (c, dist)
             checked += 1
     assert checked >= 3
+
+
+def test_the_filters_never_change_an_answer():
+    """The boxing clip at 50-frame strides (fast, far-reaching steps): every pair the checker's filters clear has
+    no contact when solved on its own, and every other answer is the unfiltered solver's (to rounding: the
+    batch and the Python API round the poses each their own way)."""
+    from mjccd.geoms import geom_first_contact
+    from mjccd.replay import load_model, load_trajectory, replay_ellipsoids
+
+    model = load_model(ROOT / "models" / "boxing.xml")
+    qpos, _ = load_trajectory(ROOT / "data" / "boxing_traj.npz", model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CoverageWarning)
+        checker = GeomChecker(model, replay_ellipsoids(model, None, source="boxing.xml")[0], "characters")
+    poses = checker.qpos_poses(qpos[100:1100:50])
+    culled = contacts = 0
+    for Q0, Q1 in zip(poses[:-1], poses[1:]):
+        report = checker.check_poses(0.0, 1.0, Q0, Q1, all_pairs=True)
+        culled += report.counters["sphere_culled"]
+        found = {c.pair: c for c in report.contacts}
+        for k in range(len(checker.pairs)):
+            alone = geom_first_contact(*checker.pair_problem(k, Q0, Q1))
+            if alone is None:
+                assert k not in found, (k, found.get(k))
+                continue
+            contacts += 1
+            c = found[k]
+            assert c.status_at_start == alone.status_at_start, (c, alone)
+            if alone.status_at_start == "separate":
+                assert c.certainty == alone.certainty and abs(c.fraction - alone.time) <= 1e-12, (c, alone)
+    assert culled > 1000 and contacts > 20, (culled, contacts)

@@ -12,7 +12,9 @@ import pytest
 
 from mjccd.errors import InputError
 from mjccd.mujoco import ModelAdapter, State, fit_model
-from mjccd.mujoco.rollout import FULLPHYSICS, RolloutChecker, adapter_for, first_contacts, state_layout
+from mjccd.mujoco.geoms import GeomChecker
+from mjccd.mujoco.rollout import (FULLPHYSICS, RolloutChecker, adapter_for, checker_for, first_contacts,
+                                   state_layout)
 
 pytestmark = pytest.mark.mujoco
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -194,13 +196,49 @@ def test_states_and_their_qpos_give_the_same_contacts(model, adapters):
 
 def test_a_model_and_its_ellipsoids_check_as_the_monitor_does(model, adapters):
     state0, states, _ = _rollouts(model, 3)
-    by_model = first_contacts(model, states, initial_state=state0, ellipsoids=adapters["rigid"].ellipsoids)
+    by_model = first_contacts(model, states, initial_state=state0, ellipsoids=adapters["rigid"].ellipsoids,
+                              mode="ellipsoids")
     by_adapter = first_contacts(adapters["rigid"], states, initial_state=state0)
     np.testing.assert_array_equal(by_model.step, by_adapter.step)
     np.testing.assert_array_equal(by_model.time, by_adapter.time)
     without_floor = first_contacts(model, states, initial_state=state0, ellipsoids=adapters["rigid"].ellipsoids,
-                                   planes=False)
+                                   planes=False, mode="ellipsoids")
     assert not (without_floor.pair >= len(adapters["rigid"].pairs)).any()
+
+
+def test_geoms_mode_is_the_default_and_checks_as_a_geoms_monitor_does(model):
+    """A model alone is checked on its own geoms, each rollout's steps exactly as a geoms-mode checker checks
+    them one by one; a floor contact is the capsule's or ball's own, not an ellipsoid's."""
+    checker = checker_for(model, None)
+    assert isinstance(checker, GeomChecker)
+    hits = 0
+    for seed in (3, 11):
+        state0, states, _ = _rollouts(model, seed)
+        result = first_contacts(model, states, initial_state=state0)
+        assert (result.ellipsoids == -1).all() and result.ok.all()
+        for b, frames in enumerate(_frames_of(model, state0, states)):
+            step, ref = -1, None
+            for f in range(len(frames) - 1):
+                s0, s1 = frames[f], frames[f + 1]
+                first = checker.check_poses(s0.time, s1.time, checker.geom_poses(s0), checker.geom_poses(s1)).first
+                if first is not None:
+                    step, ref = f, first
+                    break
+            assert result.step[b] == step, b
+            if ref is None:
+                assert result.contact(b) is None and (result.geoms[b] == -1).all()
+                continue
+            hits += 1
+            mine = result.contact(b)
+            assert (mine.time, mine.pair, mine.geoms, mine.elements) == (ref.time, ref.pair, ref.geoms, ref.elements)
+            assert result.time[b] == ref.time and tuple(result.geoms[b]) == ref.geoms
+            assert result.uncertain[b] == (ref.certainty == "uncertain")
+            if ref.point is not None:
+                np.testing.assert_array_equal(result.point[b], ref.point)
+            assert result.describe(b).startswith(f"rollout {b}: ")
+    assert 0 < hits < 2 * B
+    with pytest.raises(InputError, match="mode"):
+        first_contacts(checker, states, initial_state=state0, mode="geoms")
 
 
 def test_mocap_poses_come_from_the_controls_or_the_states(model, adapters):

@@ -275,12 +275,16 @@ class GeomChecker:
                 raise InputError(f"{name}: the pose of geom {geom_label(self.model, g)!r} is not finite "
                                  f"(largest |qpos| {np.abs(state.qpos).max():.3g})")
 
+    def pair_problem(self, k, Q0, Q1):
+        """(shape_a, motion_a, shape_b, motion_b) of pair k in the step from geom poses Q0 to Q1: the arguments
+        of :func:`mjccd.geoms.geom_first_contact` that answer it with no filter in between."""
+        a, b = self.pairs[k]
+        return self._shape(a), self._motion(a, Q0, Q1), self._shape(b), self._motion(b, Q0, Q1)
+
     def pair_intervals(self, k, Q0, Q1):
         """Every (t_in, t_out) fraction of the step in which pair k touches or overlaps (its geoms' poses Q0 and
         Q1 at both ends)."""
-        a, b = self.pairs[k]
-        return geom_collision_intervals(self._shape(a), self._motion(a, Q0, Q1), self._shape(b),
-                                        self._motion(b, Q0, Q1))[0]
+        return geom_collision_intervals(*self.pair_problem(k, Q0, Q1))[0]
 
     def check_poses(self, t0, t1, Q0, Q1, *, all_pairs=False, new_only=False):
         """As :meth:`check`, from the geom poses (G, 7) at both ends of a step from time t0 to t1."""
@@ -361,8 +365,7 @@ class GeomChecker:
 
     def _solve_other(self, k, Q0, Q1):
         """Pair k through :func:`mjccd.geoms.geom_first_contact` (pairs the ellipsoid solver answers)."""
-        a, b = self.pairs[k]
-        c = geom_first_contact(self._shape(a), self._motion(a, Q0, Q1), self._shape(b), self._motion(b, Q0, Q1))
+        c = geom_first_contact(*self.pair_problem(k, Q0, Q1))
         if c is None:
             return None
         if c.status_at_start != "separate":

@@ -8,6 +8,11 @@ thread, written into preallocated buffers) and the adapter's pose routine
 compiled, parallel call of :class:`mjccd.batch.BatchScene` finds each rollout's first contact, exactly as the
 :class:`~mjccd.mujoco.ModelAdapter` finds it checking the steps one by one (same pairs, planes and motion).
 
+In geoms mode (the default of :func:`first_contacts` with the rigid motion) the poses are those of the model's
+own geoms (:class:`~mjccd.mujoco.geoms.GeomChecker`, same kinematics), and each rollout's steps are checked in
+order by :meth:`GeomChecker.check_poses <mjccd.mujoco.geoms.GeomChecker.check_poses>`, up to its first contact,
+exactly as a :class:`~mjccd.mujoco.CCDMonitor` in geoms mode checks them one by one.
+
 The frames of rollout b are ``initial_state[b]`` (when given: the state the rollout started from) followed by
 its rows; step f moves frame f to frame f + 1.  After ``mujoco.rollout`` (which records the state after each
 step) step f therefore ends at row f.
@@ -25,8 +30,10 @@ from mjccd.batch import BatchScene
 from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import UNCERTAIN
 from mjccd.mujoco.adapter import ModelAdapter
+from mjccd.geoms.batch import geom_poses_into
 from mjccd.mujoco.ellipsoids import EllipsoidSet
-from mjccd.mujoco.monitor import flag, selected_adapter, step_count
+from mjccd.mujoco.geoms import GeomChecker
+from mjccd.mujoco.monitor import check_mode, flag, selected_adapter, selected_geoms, step_count
 from mjccd.mujoco.motions import ellipsoid_poses_into
 
 FULLPHYSICS = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -67,6 +74,14 @@ def _poses_of_states(xpos, xquat, body_ids, positions, quaternions, out):
         ellipsoid_poses_into(xpos[k], xquat[k], body_ids, positions, quaternions, out[k])
 
 
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _geom_poses_of_states(xpos, xquat, body, local, out):
+    """``out[k]`` (G, 7): the geom poses of body poses ``xpos[k]``, ``xquat[k]`` for every state k, by the
+    geom checker's own routine."""
+    for k in range(xpos.shape[0]):
+        geom_poses_into(xpos[k], xquat[k], body, local, out[k])
+
+
 @dataclass(frozen=True, eq=False)
 class RolloutContacts:
     """The first contact of each of B rollouts (arrays indexed by rollout; :meth:`contact` gives one readably).
@@ -75,12 +90,17 @@ class RolloutContacts:
         step: (B,) int64 the step of the first contact (step f moves frame f to f + 1; see the module), -1 none.
         time: (B,) simulation time of the contact in seconds (the bracket's start when uncertain), NaN none.
         fraction: (B,) the same instant as a fraction in [0, 1] of its step, NaN none.
-        pair: (B,) int64 the adapter's pair index (a row of ``adapter.pairs``, or ``len(pairs)`` plus a row of
-            ``adapter.plane_pairs``), -1 none.
-        ellipsoids: (B, 2) int64 the two ellipsoid indices ((ellipsoid, -1) for a plane), -1 none.
+        pair: (B,) int64 the checker's pair index (ellipsoid mode: a row of ``adapter.pairs``, or ``len(pairs)``
+            plus a row of ``adapter.plane_pairs``; geoms mode: a row of ``adapter.pairs``), -1 none.
+        ellipsoids: (B, 2) int64 the two ellipsoid indices ((ellipsoid, -1) for a plane), -1 none (and always
+            in geoms mode).
+        geoms: (B, 2) int64 in geoms mode the two MuJoCo geom ids that touch, -1 none (and always in ellipsoid
+            mode).
         point: (B, 3) world contact point; NaN when none, when not separate at the step start, or uncertain
             without a known touching point.
-        normal: (B, 3) unit world normal out of the first ellipsoid, NaN likewise.
+        normal: (B, 3) unit world normal out of the first ellipsoid or geom, NaN likewise.
+        adapter: the :class:`~mjccd.mujoco.ModelAdapter` (ellipsoid mode) or
+            :class:`~mjccd.mujoco.geoms.GeomChecker` (geoms mode) that checked.
         uncertain: (B,) bool: the exact solver hit a limit; the contact is possible anywhere from ``time`` to
             ``time_hi`` (never read it as "no contact").
         time_hi: (B,) the end of that bracket in seconds (``time`` when certain), NaN none.
@@ -103,10 +123,13 @@ class RolloutContacts:
     stopped: np.ndarray
     ok: np.ndarray
     errors: dict
-    adapter: ModelAdapter = field(repr=False)
+    adapter: object = field(repr=False)
+    # ellipsoid mode (None in geoms mode): what the adapter needs to describe a contact
     _start_poses: np.ndarray = field(repr=False)  # (B, N, 7) the poses at the start of each contact step
     _step_times: np.ndarray = field(repr=False)   # (B, 2) start and end time of each contact step
     _fraction_hi: np.ndarray = field(repr=False)  # (B,) the bracket's end as a fraction of the step
+    geoms: np.ndarray = None
+    _contacts: tuple = field(default=None, repr=False)  # geoms mode: each rollout's StepContact, or None
 
     def __len__(self):
         return len(self.step)
@@ -131,6 +154,8 @@ class RolloutContacts:
         b = self._index(b)
         if self.step[b] < 0:
             return None
+        if self._contacts is not None:
+            return self._contacts[b]
         t0, t1 = self._step_times[b].tolist()
         known = not np.isnan(self.point[b, 0])
         bracket = (float(self.fraction[b]), float(self._fraction_hi[b])) if self.uncertain[b] else None
@@ -154,11 +179,14 @@ class RolloutContacts:
 
 
 class RolloutChecker:
-    """First contacts of batches of rollouts of one adapter's model; keeps its batch scene and buffers.
+    """First contacts of batches of rollouts of one model; keeps its batch scene and buffers.
 
     Args:
-        adapter: :class:`~mjccd.mujoco.ModelAdapter` with the rigid or affine motion (its pairs, planes and
-            motion are checked, as :meth:`ModelAdapter.check_poses` checks one step).
+        adapter: a :class:`~mjccd.mujoco.geoms.GeomChecker` (geoms mode: the model's own geoms, checked step by
+            step as :meth:`GeomChecker.check_poses <mjccd.mujoco.geoms.GeomChecker.check_poses>` checks one), or
+            a :class:`~mjccd.mujoco.ModelAdapter` with the rigid or affine motion (ellipsoid mode: its pairs,
+            planes and motion are checked, as :meth:`ModelAdapter.check_poses` checks one step, in one
+            compiled batch); :func:`checker_for` makes either.
         nthread: threads for the forward kinematics, each with its own ``MjData`` (MuJoCo releases the GIL
             in ``mj_kinematics``; the copies around it hold it), kept from call to call; a batch of fewer than
             ``STATES_PER_THREAD`` states per thread uses fewer threads, as handing work over costs more there.
@@ -168,9 +196,10 @@ class RolloutChecker:
     """
 
     def __init__(self, adapter, *, nthread=1):
-        if not isinstance(adapter, ModelAdapter):
-            raise InputTypeError(f"adapter: expected a ModelAdapter, got {type(adapter).__name__}")
-        if adapter.motion not in ("rigid", "affine"):
+        if not isinstance(adapter, (ModelAdapter, GeomChecker)):
+            raise InputTypeError(f"adapter: expected a GeomChecker or a ModelAdapter, got {type(adapter).__name__}")
+        self.mode = "geoms" if isinstance(adapter, GeomChecker) else "ellipsoids"
+        if self.mode == "ellipsoids" and adapter.motion not in ("rigid", "affine"):
             raise InputError(f"adapter: rollouts are checked with the rigid or affine motion, the adapter's is "
                              f"{adapter.motion!r}")
         self.adapter, self.model = adapter, adapter.model
@@ -182,10 +211,14 @@ class RolloutChecker:
         for d in self._datas:
             d.mocap_pos[:] = self._mocap0[0].reshape(-1, 3)
             d.mocap_quat[:] = self._mocap0[1].reshape(-1, 4)
-        e = adapter.ellipsoids
-        self._body_ids = np.ascontiguousarray(adapter.body_ids, dtype=np.int64)
-        self._positions = np.ascontiguousarray(e.positions, dtype=float)
-        self._quaternions = np.ascontiguousarray(e.quaternions, dtype=float)
+        if self.mode == "geoms":
+            self._body_ids = np.ascontiguousarray(adapter.body, dtype=np.int64)
+            self._local = np.ascontiguousarray(adapter.local, dtype=float)
+        else:
+            e = adapter.ellipsoids
+            self._body_ids = np.ascontiguousarray(adapter.body_ids, dtype=np.int64)
+            self._positions = np.ascontiguousarray(e.positions, dtype=float)
+            self._quaternions = np.ascontiguousarray(e.quaternions, dtype=float)
         self._xpos = np.empty((0, self.model.nbody, 3))
         self._xquat = np.empty((0, self.model.nbody, 4))
         self._batch = None
@@ -309,7 +342,10 @@ class RolloutChecker:
                     for d, lo, hi in zip(self._datas, cuts[:-1], cuts[1:])]
             for job in jobs:
                 job.result()
-        _poses_of_states(xpos, xquat, self._body_ids, self._positions, self._quaternions, out)
+        if self.mode == "geoms":
+            _geom_poses_of_states(xpos, xquat, self._body_ids, self._local, out)
+        else:
+            _poses_of_states(xpos, xquat, self._body_ids, self._positions, self._quaternions, out)
 
     def _forward(self, d, kin, xpos, xquat):
         """Body poses (xpos, xquat rows) of the kinematic states ``kin`` by ``mj_kinematics`` on ``d``."""
@@ -336,7 +372,7 @@ class RolloutChecker:
 
     def poses(self, states=None, *, qpos=None, initial_state=None, state_spec=FULLPHYSICS, control=None,
               control_spec=int(mujoco.mjtState.mjSTATE_CTRL)):
-        """(B, F, N, 7) ellipsoid poses of every frame (arguments as in :meth:`first_contacts`; a frame with a
+        """(B, F, N, 7) ellipsoid (or, in geoms mode, geom) poses of every frame (arguments as in :meth:`first_contacts`; a frame with a
         NaN or infinite position gives NaN or infinite poses)."""
         kin, _, _ = self._frames(states, qpos, initial_state, state_spec, control, control_spec, 0.0, None)
         out = np.empty(kin.shape[:2] + (len(self._body_ids), 7))
@@ -408,6 +444,10 @@ class RolloutChecker:
                     stopped[b] = f
                     poses[b, f + 1:] = poses[b, f]  # no motion from there: nothing new can touch
         tock = perf_counter()
+        if self.mode == "geoms":
+            answer = self._geom_answer(poses, times, stopped, errors, new_only)
+            self.timing = {"kinematics": tock - tick, "check": perf_counter() - tock}
+            return answer
         found = self._check(poses, new_only)
         self.timing = {"kinematics": tock - tick, "check": perf_counter() - tock}
         if found is not None:  # poses the batch refused though the states were finite: the frame named
@@ -425,6 +465,45 @@ class RolloutChecker:
         if nb == 0 or nf < 2 or a.scene is None:
             return None
         return self._scene(nb).first_contacts_along(poses, new_contacts_only=new_only)
+
+    def _geom_answer(self, poses, times, stopped, errors, new_only):
+        """The :class:`RolloutContacts` of geoms mode: each answered rollout's steps checked in order up to its
+        first contact (a rollout whose time stopped, up to the step where it did)."""
+        nb, nf = poses.shape[:2]
+        checker = self.adapter
+        found = [None] * nb
+        for b in range(nb):
+            if b in errors:
+                continue
+            last = nf - 1 if stopped[b] < 0 else int(stopped[b])
+            for f in range(last):
+                first = checker.check_poses(float(times[b, f]), float(times[b, f + 1]), poses[b, f],
+                                            poses[b, f + 1], new_only=new_only).first
+                if first is not None:
+                    found[b] = (f, first)
+                    break
+        step = np.full(nb, -1, dtype=np.int64)
+        pair = np.full(nb, -1, dtype=np.int64)
+        geoms = np.full((nb, 2), -1, dtype=np.int64)
+        time, time_hi, fraction = np.full(nb, np.nan), np.full(nb, np.nan), np.full(nb, np.nan)
+        point, normal = np.full((nb, 3), np.nan), np.full((nb, 3), np.nan)
+        uncertain = np.zeros(nb, dtype=bool)
+        contacts = [None] * nb
+        for b, hit in enumerate(found):
+            if hit is None:
+                continue
+            f, c = hit
+            contacts[b] = c
+            step[b], pair[b], geoms[b] = f, c.pair, c.geoms
+            time[b], fraction[b] = c.time, c.fraction
+            uncertain[b] = c.certainty == "uncertain"
+            time_hi[b] = c.bracket[1] if uncertain[b] else c.time
+            if c.point is not None:
+                point[b], normal[b] = c.point, c.normal
+        ok = np.array([b not in errors for b in range(nb)], dtype=bool)
+        return RolloutContacts(step, time, fraction, pair, np.full((nb, 2), -1, dtype=np.int64), point, normal,
+                               uncertain, time_hi, stopped, ok, errors, checker, None, None, None, geoms,
+                               tuple(contacts))
 
     def _answer(self, found, poses, times, stopped, errors):
         """The :class:`RolloutContacts` of a batch answer."""
@@ -466,7 +545,8 @@ class RolloutChecker:
         with np.errstate(invalid="ignore"):
             seconds, seconds_hi = t0 + fraction * span, t0 + fraction_hi * span
         return RolloutContacts(step, seconds, fraction, pair, ellipsoids, point, normal, uncertain, seconds_hi,
-                               stopped, ok, errors, a, starts, step_times, fraction_hi)
+                               stopped, ok, errors, a, starts, step_times, fraction_hi,
+                               np.full((nb, 2), -1, dtype=np.int64))
 
 
 def adapter_for(model, ellipsoids, *, pairs=None, motion="rigid", planes=True):
@@ -482,27 +562,43 @@ def adapter_for(model, ellipsoids, *, pairs=None, motion="rigid", planes=True):
     return selected_adapter(model, ellipsoids, pairs, motion, flag(planes, "planes"))
 
 
+def checker_for(model, ellipsoids, *, pairs=None, motion="rigid", planes=True, mode=None):
+    """What a :class:`~mjccd.mujoco.CCDMonitor` of these arguments checks with, for a :class:`RolloutChecker`:
+    in geoms mode (``mode=None`` with the rigid motion, or ``"geoms"``) a
+    :class:`~mjccd.mujoco.geoms.GeomChecker` of the model's own geoms, in ellipsoid mode the
+    :class:`~mjccd.mujoco.ModelAdapter` of :func:`adapter_for`."""
+    if check_mode(mode, motion) == "ellipsoids":
+        return adapter_for(model, ellipsoids, pairs=pairs, motion=motion, planes=planes)
+    if not isinstance(model, mujoco.MjModel):
+        raise InputTypeError(f"model: expected a mujoco.MjModel, got {type(model).__name__}")
+    if ellipsoids is not None and not isinstance(ellipsoids, EllipsoidSet):
+        raise InputTypeError(f"ellipsoids: expected an EllipsoidSet (e.g. mjccd.mujoco.fit_model(model)) or None, "
+                             f"got {type(ellipsoids).__name__}")
+    return selected_geoms(model, ellipsoids, pairs, flag(planes, "planes"), stacklevel=2)
+
+
 def first_contacts(model_or_adapter, states=None, *, qpos=None, initial_state=None, ellipsoids=None, pairs=None,
-                   planes=True, motion="rigid", nthread=1, **options):
+                   planes=True, motion="rigid", mode=None, nthread=1, **options):
     """The first contact of every rollout (:class:`RolloutContacts`): :meth:`RolloutChecker.first_contacts`
     once.
 
     Args:
-        model_or_adapter: a :class:`~mjccd.mujoco.ModelAdapter`, or an ``MjModel`` with ``ellipsoids``
-            (:class:`~mjccd.mujoco.EllipsoidSet`), ``pairs``, ``planes`` and ``motion`` as for
-            :class:`~mjccd.mujoco.CCDMonitor` (default: MuJoCo's collision rules, static planes included).
+        model_or_adapter: a :class:`~mjccd.mujoco.geoms.GeomChecker` or :class:`~mjccd.mujoco.ModelAdapter`,
+            or an ``MjModel`` with ``ellipsoids`` (:class:`~mjccd.mujoco.EllipsoidSet`), ``pairs``,
+            ``planes``, ``motion`` and ``mode`` as for :class:`~mjccd.mujoco.CCDMonitor` (default: the
+            model's own geoms, MuJoCo's collision rules, static planes included; :func:`checker_for`).
         states, qpos, initial_state: the rollouts, as in :meth:`RolloutChecker.first_contacts`, whose other
             keyword arguments ``options`` passes on.
         nthread: threads for the kinematics.
 
     To check batch after batch, keep a :class:`RolloutChecker` (it keeps its compiled scene and buffers).
     """
-    if isinstance(model_or_adapter, ModelAdapter):
-        if ellipsoids is not None or pairs is not None:
-            raise InputError("ellipsoids, pairs: given by the adapter; pass them with a model instead")
+    if isinstance(model_or_adapter, (ModelAdapter, GeomChecker)):
+        if ellipsoids is not None or pairs is not None or mode is not None:
+            raise InputError("ellipsoids, pairs, mode: given by the adapter; pass them with a model instead")
         adapter = model_or_adapter
     else:
-        adapter = adapter_for(model_or_adapter, ellipsoids, pairs=pairs, motion=motion, planes=planes)
+        adapter = checker_for(model_or_adapter, ellipsoids, pairs=pairs, motion=motion, planes=planes, mode=mode)
     return RolloutChecker(adapter, nthread=nthread).first_contacts(states, qpos=qpos, initial_state=initial_state,
                                                                    **options)
 

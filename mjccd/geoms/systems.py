@@ -563,6 +563,27 @@ def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
 
 
 @_jit
+def _capsules(W, I, CON, SYS, SYSR, N, sa, FA, sb, FB):
+    """Capsule against capsule: their segments come within ra + rb exactly when an end of B's comes that near
+    A's segment (B's ends in A inflated by rb: its end balls and its cylinder), an end of A's comes that near
+    the inside of B's (A's ends in B's inflated cylinder: the end-to-end distances are already B's ends in A's
+    balls), or the closest points of the two axis lines, inside both segments, do (:func:`axis_lines`; where
+    the axes are parallel an end is among the closest points)."""
+    ra, rb = sa[0], sb[0]
+    HAB = fr.relative(W, I, FA, FB)
+    HBA = fr.relative(W, I, FB, FA)
+    _points_in_solid(W, I, CON, SYS, SYSR, N, _core_points(W, I, CAPSULE, sb, HAB), CAPSULE, sa, rb, ra, 0, rb)
+    PQ, PP, PL, PN, npc = solid_pieces(CAPSULE, sb, ra, rb)
+    ends = _core_points(W, I, CAPSULE, sa, HBA)
+    for m in range(2):
+        for k in range(npc):
+            if PQ[k] == AXCYL:
+                point_in_piece(W, I, CON, SYS, SYSR, N, ends[m], PQ[k], PP[k], PL[k], PN[k], 1, ra)
+    axis_lines(W, I, CON, SYS, SYSR, N, HAB, ra, sa[1], rb, sb[1], 0)
+    return HANDLED
+
+
+@_jit
 def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
     """A (capsule, cylinder or box) against the ellipsoid B (radii sb)."""
     HBA = fr.relative(W, I, FB, FA)  # A's frame into the ellipsoid's
@@ -604,6 +625,8 @@ def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     # now ka <= kb: SPHERE < CAPSULE < CYLINDER < BOX < ELLIPSOID < PLANE
     if ka == SPHERE and kb == ELLIPSOID or ka == ELLIPSOID:
         return 0
+    if ka == CAPSULE and kb == CAPSULE:
+        return _capsules(W, I, CON, SYS, SYSR, N, sa, FA, sb, FB)
     if rounded(ka):
         if kb == ELLIPSOID:
             return _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB)

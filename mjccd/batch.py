@@ -29,6 +29,7 @@ import numpy as np
 from numba.typed import List
 
 from mjccd import _validate
+from mjccd._exclusive import Exclusive, exclusive
 from mjccd.errors import InputError
 from mjccd.scene import N_COUNTERS, UNCERTAIN, Scene, field, new_workspace, split_poses, step_kernel, workspace_ref
 
@@ -338,7 +339,8 @@ class BatchScene:
 
     Each world answers as a :class:`mjccd.scene.Scene` of its own would, bit
     for bit, and carries its own plane cache from call to call.  One call at
-    a time per batch (as for a scene).  The threads are numba's
+    a time per batch (as for a scene: a call while another thread is in one raises
+    :class:`~mjccd.errors.ConcurrentUseError`).  The threads are numba's
     (``numba.set_num_threads``; at most one per world is used).  Each call
     ends when every thread is done: where other processes keep the cores
     busy, a thread can wait for one for a scheduler tick (milliseconds, with
@@ -375,6 +377,7 @@ class BatchScene:
         self._cache_kind = np.zeros((self.worlds, npairs), dtype=np.int8)
         self._none = _PerPair(np.zeros((0, 0), dtype=np.int8), np.zeros((0, 0)), np.zeros((0, 0)),
                               np.zeros((0, N_COUNTERS), dtype=np.int64))
+        self._exclusive = Exclusive("BatchScene")
 
     @property
     def radii(self):
@@ -411,16 +414,19 @@ class BatchScene:
         """(Q,) read-only: :attr:`mjccd.scene.Scene.plane_min_motion`, the same for every world."""
         return self._checks.plane_min_motion
 
+    @exclusive
     def set_min_motion(self, values):
         """As :meth:`mjccd.scene.Scene.set_min_motion`, for every world."""
         self._checks.set_min_motion(values)
         self._shared.min_motion[:] = self._checks.min_motion
 
+    @exclusive
     def set_plane_min_motion(self, values):
         """As :meth:`mjccd.scene.Scene.set_plane_min_motion`, for every world."""
         self._checks.set_plane_min_motion(values)
         self._shared.plane_min_motion[:] = self._checks.plane_min_motion
 
+    @exclusive
     def reset_cache(self, worlds=None):
         """Forget the cached separating planes of the given worlds (indices; None: every world)."""
         if worlds is None:
@@ -473,6 +479,7 @@ class BatchScene:
 
     # ------------------------------------------------------------ checks of the worlds
 
+    @exclusive
     def first_contacts(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """The first contact of one frame in every world: :class:`BatchContacts` (``frame`` 0, or -1 when none).
 
@@ -487,6 +494,7 @@ class BatchScene:
         first, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only), False)
         return first
 
+    @exclusive
     def step(self, poses_t0, poses_t1, *, all_pairs=True, new_contacts_only=False):
         """One frame in every world with every pair's outcome: a :class:`BatchStep`.
 
@@ -500,6 +508,7 @@ class BatchScene:
         first, per = self._frame(poses_t0, poses_t1, bool(all_pairs), bool(new_contacts_only), True)
         return BatchStep(first, *per)
 
+    @exclusive
     def first_contacts_along(self, poses, *, new_contacts_only=False):
         """The first frame with a contact in each world, over a pose sequence: :class:`BatchContacts`.
 

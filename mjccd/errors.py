@@ -24,3 +24,10 @@ class InputTypeError(MjccdError, TypeError, ValueError):
 
 class OutputError(MjccdError, OSError):
     """An output that would overwrite something it must not, or that cannot be written."""
+
+
+class ConcurrentUseError(MjccdError, RuntimeError):
+    """One object (a Scene, a monitor, a batch) entered from a second thread while the first is still in it.
+
+    Its buffers are shared, so the second call could only give wrong answers: it is refused at once.
+    """

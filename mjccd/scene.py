@@ -51,6 +51,7 @@ from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic, overload
 
 from mjccd import _validate
+from mjccd._exclusive import Exclusive, exclusive
 from mjccd import filters as fl
 from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
@@ -1128,6 +1129,11 @@ class Scene:
             every ellipsoid against every plane.  Their pair indices are
             ``len(pairs) + row`` (see :meth:`plane_pair`), their contacts
             :class:`PlaneContact`.
+
+    One thread at a time: the scene's buffers (poses, answers, plane cache)
+    are shared, so a call while another thread is in one raises
+    :class:`~mjccd.errors.ConcurrentUseError` at once (a scene per thread
+    runs in parallel).
     """
 
     def __init__(self, radii, *, pairs=None, motion="rigid", plane_cache=True, planes=None, plane_pairs=None):
@@ -1164,6 +1170,7 @@ class Scene:
         self.radii, self.pairs, self.plane_cache = self._arrays.radii, self._arrays.pairs, self._arrays.plane_cache
         self._iv, self._owner = np.empty((0, 2)), np.empty(0, dtype=np.int64)  # intervals (all pairs), grown as needed
         self._plane_rows = self._arrays.plane_pairs if len(self._arrays.plane_pairs) else None  # for frame_result
+        self._exclusive = Exclusive("Scene")
 
     @property
     def planes(self):
@@ -1199,6 +1206,7 @@ class Scene:
         view.flags.writeable = False
         return view
 
+    @exclusive
     def set_plane_min_motion(self, values):
         """Leave out the plane pairs whose ellipsoid moves too little to matter: :meth:`set_min_motion` for planes.
 
@@ -1236,6 +1244,7 @@ class Scene:
         view.flags.writeable = False
         return view
 
+    @exclusive
     def set_min_motion(self, values):
         """Leave out the pairs that move too little to matter: a policy, not a filter.
 
@@ -1255,6 +1264,7 @@ class Scene:
             raise InputError(f"min_motion[{bad[0]}]: expected a distance >= 0, got {float(arr[bad[0]])!r}")
         self._arrays.min_motion[:] = arr
 
+    @exclusive
     def reset_cache(self):
         """Forget every cached separating plane."""
         self._arrays.cache_n[:] = 0.0
@@ -1285,6 +1295,7 @@ class Scene:
                                                          all_pairs, new_contacts_only, False)
         return best_k, niv
 
+    @exclusive
     def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
         """Check one frame.
 
@@ -1305,6 +1316,7 @@ class Scene:
         return frame_result(a.pairs, best_k, a.outcome, a.times, a.times_hi, a.points, a.normals, a.counters,
                             (self._iv[:niv], self._owner[:niv]) if all_pairs else None, self._plane_rows)
 
+    @exclusive
     def first_contact(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """The first contact of one frame, without the result objects of :meth:`step`: None or a :class:`FirstContact`.
 
@@ -1320,6 +1332,7 @@ class Scene:
         a = self._arrays
         return first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
 
+    @exclusive
     def first_pair(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """The pair index of the first contact of one frame (-1: none), for callers that read the rest of the
         answer from :attr:`workspace` (``outcome``, ``times``, ``points``, ... of every pair, ``counters``).
@@ -1329,6 +1342,7 @@ class Scene:
         best_k, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only))
         return int(best_k)
 
+    @exclusive
     def may_touch(self, poses_t0, poses_t1):
         """A cheap conservative test: False only when :meth:`first_contact` ``(..., new_contacts_only=True)`` of
         the same poses certainly finds nothing (not even an uncertain contact).
@@ -1345,6 +1359,7 @@ class Scene:
         self._poses(poses_t1, "poses_t1", a.p1, a.q1)
         return bool(may_touch_kernel(self._ref, a.p0, a.q0, a.p1, a.q1))
 
+    @exclusive
     def run(self, poses, *, timing=False, new_contacts_only=False):
         """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
 

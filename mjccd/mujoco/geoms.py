@@ -24,7 +24,6 @@ pose.  With ``"characters"``, ``"self"`` or a list of body pairs, the body pairs
 ellipsoids, :func:`mjccd.mujoco.pairs.pairs_with_reason`) and every pair of their real geoms.  Static
 planes: by MuJoCo's rules with ``pairs=None``, else every static plane against every geom of a moving body.
 """
-import threading
 import warnings
 
 import mujoco
@@ -139,7 +138,6 @@ class GeomChecker:
         self.pairs, self.reason = self._pairs(ellipsoids, pairs, planes)
         self.min_motion = np.zeros(len(self.pairs))  # see set_min_motion
         self.kinematics = Kinematics(model)
-        self._lock = threading.Lock()
 
     def thickness(self):
         """(G,) how thick each checked geom is: its smallest radius or half size (a cylinder's smaller of radius
@@ -291,15 +289,9 @@ class GeomChecker:
         npairs = len(self.pairs)
         if npairs == 0:
             return StepReport(None, (), 0, 0, 0, False, StepCounters([0] * len(COUNTER_NAMES)))
-        if not self._lock.acquire(blocking=False):
-            raise RuntimeError("GeomChecker: used from two threads at once; give each thread its own checker")
-        try:
-            out = np.empty((npairs, kn.OUT))
-            gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
-                          bool(new_only),
-                          *workspaces(), out)
-        finally:
-            self._lock.release()
+        out = np.empty((npairs, kn.OUT))
+        gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
+                      bool(new_only), *workspaces(), out)
         contacts = []
         counts = dict.fromkeys(COUNTER_NAMES, 0)
         counts["pairs"] = npairs

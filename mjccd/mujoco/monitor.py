@@ -5,6 +5,7 @@ import warnings
 import mujoco
 import numpy as np
 
+from mjccd._exclusive import Exclusive, exclusive
 from mjccd.errors import InputError, InputTypeError
 from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
@@ -152,6 +153,10 @@ class CCDMonitor:
             (:class:`~mjccd.mujoco.warnings.CoverageWarning`, naming the geom).
         mode: "geoms" (each contact is of two geoms, :mod:`mjccd.mujoco.geoms`: contacts name ``geoms`` and
             ``elements``), "ellipsoids", or None: geoms with ``motion="rigid"``, ellipsoids otherwise.
+
+    One thread at a time (it steps one ``MjData`` and keeps the last state seen): a call of :meth:`step`,
+    :meth:`advance_checked` or :meth:`check` while another thread is in one raises
+    :class:`~mjccd.errors.ConcurrentUseError` at once.
     """
 
     def __init__(self, model, data, ellipsoids, *, pairs=None, motion="rigid", on_contact=None,
@@ -187,6 +192,7 @@ class CCDMonitor:
         # the data whose warning counts _warnings views (MjData arrays: views, fetched once), the bad-state ones
         # (_bad) and where they lie in the bytes of all (_bad_bytes)
         self._watched = self._warnings = self._bad = self._bad_bytes = None
+        self._exclusive = Exclusive("CCDMonitor")
 
     @property
     def scene(self):
@@ -196,6 +202,7 @@ class CCDMonitor:
 
     # ------------------------------------------------------------ stepping
 
+    @exclusive
     def step(self, nstep=1):
         """Run ``mj_step`` ``nstep`` times (an int >= 1), checking each step; the earliest :class:`StepContact` or None.
 
@@ -219,6 +226,7 @@ class CCDMonitor:
                                           any(r.unstable for r in reports))
         return first
 
+    @exclusive
     def advance_checked(self, advance, step_name="the step", *, bodies_current=False):
         """Take one simulator step with ``advance()`` and check it: its :class:`StepReport` (also ``last_report``).
 
@@ -324,6 +332,7 @@ class CCDMonitor:
         self.last_report = UNSTABLE_REPORT
         return UNSTABLE_REPORT
 
+    @exclusive
     def check(self, state_t0, state_t1):
         """First contact while moving from state_t0 to state_t1 (``MjData``, :class:`State` or qpos).
 

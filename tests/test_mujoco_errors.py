@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mjccd.errors import InputError, InputTypeError
-from mjccd.mujoco import CCDMonitor, EllipsoidSet, GuardedStepper, interpolate_qpos, load_ellipsoids
+from mjccd.mujoco import CCDMonitor, EllipsoidSet, GuardedStepper, fit_model, interpolate_qpos, load_ellipsoids
 from mjccd.scene import Scene
 
 # A ball in front of a thin wall; the tests put it behind the wall, so that MuJoCo's reset to qpos0 jumps
@@ -321,3 +321,36 @@ def test_scene_takes_a_huge_quaternion_as_its_direction():
         assert found is not None and found.time == expected.time
     run = Scene(radii).run(np.stack([huge, huge]))
     assert run.pair[0] == 0 and run.time[0] == 0.0
+
+
+ZERO_QUAT = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="free" pos="0 0 0.5"><freejoint/><geom type="sphere" size="0.1"/></body>
+    <body name="arm" pos="0.5 0 0.5"><joint name="shoulder" type="ball"/><geom type="capsule" size="0.05 0.2"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("motion, mode", [("rigid", "geoms"), ("rigid", "ellipsoids"), ("affine", "ellipsoids"),
+                                          ("chain", "ellipsoids")])
+def test_a_zero_quaternion_is_a_bad_state_in_every_motion(motion, mode):
+    """A zero joint quaternion (no rotation) in a state given to check is an InputError naming the qpos entries
+    and the joint; a step from such a state is reported unstable and not checked; never a ZeroDivisionError
+    (the chain motion divides by the quaternions' norms)."""
+    model = mujoco.MjModel.from_xml_string(ZERO_QUAT)
+    data = mujoco.MjData(model)
+    monitor = CCDMonitor(model, data, fit_model(model), motion=motion, mode=mode)
+    monitor.step()
+    for adr, who in ((3, "joint #0 of body 'free'"), (7, "joint 'shoulder' of body 'arm'")):
+        bad = data.qpos.copy()
+        bad[adr:adr + 4] = 0.0
+        with pytest.raises(InputError, match=re.escape(f"state_t1: qpos[{adr}:{adr + 4}] is a zero quaternion "
+                                                       f"({who})")):
+            monitor.check(data.qpos.copy(), bad)
+        data.qpos[adr:adr + 4] = 0.0
+        assert monitor.step() is None and monitor.last_report.unstable
+        monitor.step()  # MuJoCo's step normalised it: checked again
+        assert not monitor.last_report.unstable

@@ -30,7 +30,7 @@ from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
-from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error
+from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error, zero_quaternion_error
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
 from mjccd.mujoco.warnings import mujoco_warnings
@@ -360,6 +360,10 @@ class ModelAdapter:
         """Chain motions: the chain filters, then the exact solver pair by pair."""
         p0 = poses[0]
         self.check_finite((s0, s1), poses, names)
+        for state, name in zip((s0, s1), names):  # a chain's turns divide by its quaternions' norms
+            error = zero_quaternion_error(self.model, state, name)
+            if error is not None:
+                raise error
         chains = self.chains
         v0, v1 = chains.values(s0), chains.values(s1)
         chains.check_turns(v0, v1)

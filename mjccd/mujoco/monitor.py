@@ -15,7 +15,8 @@ from mjccd.mujoco.geoms import GeomChecker
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import (MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state, capture,
-                                  ellipsoid_poses_into, poses_then_first, poses_then_may_touch)
+                                  ellipsoid_poses_into, poses_then_first, poses_then_may_touch, quaternion_addresses,
+                                  zero_quaternion)
 
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
                    | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
@@ -193,6 +194,7 @@ class CCDMonitor:
         # (_bad) and where they lie in the bytes of all (_bad_bytes)
         self._watched = self._warnings = self._bad = self._bad_bytes = None
         self._exclusive = Exclusive("CCDMonitor")
+        self._quaternions = quaternion_addresses(model)  # a zero one is a bad state (see advance_checked)
 
     @property
     def scene(self):
@@ -248,6 +250,9 @@ class CCDMonitor:
             self.last_report = UNSTABLE_REPORT if went_bad(d, self._bad, counts_before[self._bad_bytes], time_before) \
                 else NO_PAIR_REPORT
             return self.last_report
+        if self._zero_quaternion(d):  # a start state with no rotation: the step is taken, not checked
+            advance()
+            return self._unstable()
         if self.geoms is not None:
             return self._advance_geoms(d, advance, counts, counts_before, time_before, step_name)
         poses = self._poses
@@ -260,7 +265,7 @@ class CCDMonitor:
         advance()
         # went_bad's warning and time tests (any warning, then the bad-state ones): the state's own is compiled
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
-                or d.time <= time_before:
+                or d.time <= time_before or self._zero_quaternion(d):
             return self._unstable()
         if poses is None:
             if not state_finite(d):
@@ -301,7 +306,7 @@ class CCDMonitor:
         q0 = self._poses_of(s0)
         advance()
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
-                or d.time <= time_before or not state_finite(d):
+                or d.time <= time_before or not state_finite(d) or self._zero_quaternion(d):
             return self._unstable()
         s1 = capture(d)
         q1 = self._poses_of(s1)
@@ -310,6 +315,12 @@ class CCDMonitor:
             self.geoms.check_finite((s0, s1), (q0, q1), self._names(step_name))
         return self._reported(self.geoms.check_poses(time_before, d.time, q0, q1, all_pairs=self.all_pairs,
                                                      new_only=not self.report_overlapping))
+
+    def _zero_quaternion(self, data):
+        """True when a joint or mocap quaternion of ``data`` is zero (no rotation: MuJoCo's kinematics would
+        read it as the identity, a chain's turns divide by it)."""
+        return (len(self._quaternions) or len(data.mocap_quat)) and \
+            zero_quaternion(data.qpos, data.mocap_quat, self._quaternions) is not None
 
     def _watch(self, data):
         """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones) once per data."""

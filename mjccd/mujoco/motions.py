@@ -44,6 +44,48 @@ def nonfinite_error(state, name):
     return None
 
 
+def quaternion_addresses(model):
+    """The qpos addresses of the free and ball joints' quaternions (4 entries each), sorted."""
+    jt, adr = model.jnt_type, model.jnt_qposadr
+    free = adr[jt == mujoco.mjtJoint.mjJNT_FREE] + 3
+    ball = adr[jt == mujoco.mjtJoint.mjJNT_BALL]
+    return np.sort(np.concatenate([free, ball])).astype(np.int64)
+
+
+def zero_quaternion(qpos, mocap_quat, addresses):
+    """The first quaternion shorter than ``_validate.MIN_NORM`` (no rotation: a bad state), as
+    ("qpos", address) or ("mocap_quat", row); None when there is none."""
+    for a in addresses.tolist():
+        q = qpos[a:a + 4]
+        if q.dot(q) < _validate.MIN_NORM ** 2:
+            return "qpos", a
+    if len(mocap_quat):
+        norms = np.einsum("ij,ij->i", np.reshape(mocap_quat, (-1, 4)), np.reshape(mocap_quat, (-1, 4)))
+        small = np.flatnonzero(norms < _validate.MIN_NORM ** 2)
+        if len(small):
+            return "mocap_quat", int(small[0])
+    return None
+
+
+def zero_quaternion_error(model, state, name):
+    """The :class:`~mjccd.errors.InputError` naming a zero joint or mocap quaternion of ``state`` (``name``:
+    the state as the caller knows it), or None."""
+    bad = zero_quaternion(state.qpos, state.mocap_quat, quaternion_addresses(model))
+    if bad is None:
+        return None
+    where, k = bad
+    if where == "qpos":
+        free = model.jnt_type == mujoco.mjtJoint.mjJNT_FREE
+        joint = int(np.flatnonzero(model.jnt_qposadr + np.where(free, 3, 0) == k)[0])
+        body = int(model.jnt_bodyid[joint])
+        label = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+        label = repr(label) if label else f"#{joint}"
+        owner = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"#{body}"
+        return InputError(f"{name}: qpos[{k}:{k + 4}] is a zero quaternion (joint {label} of body {owner!r}): "
+                          f"no rotation")
+    return InputError(f"{name}: mocap_quat[{k}] is a zero quaternion: no rotation")
+
+
 def as_state(model, value, field, mocap_from=None):
     """A :class:`State` from an ``MjData``, a ``State`` or a qpos vector; errors name ``field``."""
     if isinstance(value, mujoco.MjData):
@@ -69,6 +111,9 @@ def as_state(model, value, field, mocap_from=None):
             raise InputError(f"{field}.{name}[{bad}]: is NaN or infinite")
     if state.qpos.shape != (model.nq,):
         raise InputError(f"{field}.qpos: expected length nq = {model.nq}, got {state.qpos.shape}")
+    error = zero_quaternion_error(model, state, field)
+    if error is not None:
+        raise error
     return state
 
 

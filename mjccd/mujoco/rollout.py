@@ -372,8 +372,8 @@ class RolloutChecker:
 
     def poses(self, states=None, *, qpos=None, initial_state=None, state_spec=FULLPHYSICS, control=None,
               control_spec=int(mujoco.mjtState.mjSTATE_CTRL)):
-        """(B, F, N, 7) ellipsoid (or, in geoms mode, geom) poses of every frame (arguments as in :meth:`first_contacts`; a frame with a
-        NaN or infinite position gives NaN or infinite poses)."""
+        """(B, F, N, 7) ellipsoid (in geoms mode, geom) poses of every frame (arguments as in
+        :meth:`first_contacts`; a frame with a NaN or infinite position gives NaN or infinite poses)."""
         kin, _, _ = self._frames(states, qpos, initial_state, state_spec, control, control_spec, 0.0, None)
         out = np.empty(kin.shape[:2] + (len(self._body_ids), 7))
         self._kinematics(kin.reshape(-1, kin.shape[2]), out.reshape(-1, len(self._body_ids), 7))

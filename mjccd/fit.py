@@ -9,6 +9,7 @@ import contextlib
 import os
 import sys
 import tempfile
+import warnings
 
 import mujoco
 
@@ -16,7 +17,7 @@ from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
 from mjccd.fitting import DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES
 from mjccd.mujoco.ellipsoids import fit_model, fit_report
-from mjccd.mujoco.warnings import mujoco_warnings
+from mjccd.mujoco.warnings import CoverageWarning, mujoco_warnings
 
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
@@ -236,8 +237,14 @@ def main(argv=None):
             try:
                 if args.max_ellipsoids < 1:
                     raise InputError(f"--max-ellipsoids: expected a positive integer, got {args.max_ellipsoids}")
-                ellipsoids = fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
-                                       include_visual=args.include_visual, max_ellipsoids=args.max_ellipsoids)
+                with warnings.catch_warnings():  # an empty fit is refused below, in the command's words
+                    warnings.simplefilter("ignore", CoverageWarning)
+                    ellipsoids = fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
+                                           include_visual=args.include_visual, max_ellipsoids=args.max_ellipsoids)
+                if len(ellipsoids) == 0:
+                    raise ValueError("no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision "
+                                     "geometry: nothing to bound" + ("" if args.include_visual else
+                                                                     " (--include-visual bounds the visual geoms)"))
                 report = None if args.quiet else fit_report(model, ellipsoids, include_visual=args.include_visual)
             except ValueError as exc:
                 raise InputError(f"{args.model}: {exc}") from None

@@ -570,3 +570,34 @@ def _png(width, height):
     rows = b"".join(b"\x00" + b"\x80\x80\x80" * width for _ in range(height))
     return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
             + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+NOTHING_COLLIDES = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1" contype="0" conaffinity="0"/>
+    <body name="link"><freejoint/><geom type="capsule" size="0.1 0.5" contype="0" conaffinity="0"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_nothing_to_bound_warns_and_gives_an_empty_set_the_monitor_takes(tmp_path, capsys):
+    """As Gymnasium's Swimmer: no collision geometry.  fit_model warns (pointing at include_visual) and returns an
+    empty set, which a monitor takes (no pair, its own warning); the command refuses and writes nothing."""
+    from mjccd.mujoco import CCDMonitor
+    from mjccd.mujoco.warnings import CoverageWarning
+
+    model = mujoco.MjModel.from_xml_string(NOTHING_COLLIDES)
+    with pytest.warns(CoverageWarning, match="nothing to bound .include_visual=True"):
+        empty = fit_model(model)
+    assert len(empty) == 0 and empty.radii.shape == (0, 3)
+    assert len(fit_model(model, include_visual=True)) == 1
+    with pytest.warns(CoverageWarning, match="no pair to check: the ellipsoid set is empty"):
+        monitor = CCDMonitor(model, mujoco.MjData(model), empty, mode="ellipsoids")
+    assert monitor.step() is None
+    src, out = tmp_path / "nothing.xml", tmp_path / "out.xml"
+    src.write_text(NOTHING_COLLIDES)
+    assert main([str(src), "-o", str(out)]) == 2
+    assert "nothing to bound (--include-visual bounds the visual geoms)" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["nothing.xml"]

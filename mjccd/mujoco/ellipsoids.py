@@ -5,6 +5,7 @@ The fitting maths is :mod:`mjccd.fitting`; this module reads the geoms of a
 """
 import json
 import os
+import warnings
 import zipfile
 from dataclasses import dataclass, field
 
@@ -16,6 +17,7 @@ from mjccd.errors import InputError, InputTypeError
 from mjccd.fitting import (MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES, Shape, cover_report, cover_shape,
                            fit_shapes, within_tolerance)
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
+from mjccd.mujoco.warnings import CoverageWarning
 
 FORMAT_VERSION = 1
 BOUND_GROUP = 5  # the geom group mjccd fit writes its bounding ellipsoids to
@@ -52,13 +54,11 @@ class EllipsoidSet:
     def __post_init__(self):
         bodies = tuple(str(b) for b in self.bodies)
         n = len(bodies)
-        if n == 0:
-            raise InputError("bodies: an ellipsoid set needs at least one ellipsoid")
         object.__setattr__(self, "bodies", bodies)
         object.__setattr__(self, "radii", _validate.radii_array(self.radii, "radii"))
         object.__setattr__(self, "positions", _validate.array(self.positions, (n, 3), "positions"))
         quats = _validate.pose_array(np.hstack([np.zeros((n, 3)), _validate.array(
-            self.quaternions, (n, 4), "quaternions")]), "quaternions")[:, 3:]
+            self.quaternions, (n, 4), "quaternions")]), "quaternions")[:, 3:] if n else np.zeros((0, 4))
         object.__setattr__(self, "quaternions", np.ascontiguousarray(quats))
         if len(self.radii) != n:
             raise InputError(f"radii: expected {n} rows (one per body entry), got {len(self.radii)}")
@@ -379,8 +379,11 @@ def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=
         except ValueError as exc:
             raise ValueError(f"body {label!r}: {exc}") from None
     if not out["bodies"]:
-        raise ValueError("model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh "
-                         "collision geometry")
+        hint = "" if include_visual else " (include_visual=True also bounds the visual geoms)"
+        warnings.warn(f"fit_model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision geometry: "
+                      f"nothing to bound{hint}", CoverageWarning, stacklevel=2)
+        return EllipsoidSet(bodies=(), radii=np.zeros((0, 3)), positions=np.zeros((0, 3)),
+                            quaternions=np.zeros((0, 4)))
     return EllipsoidSet(**out)
 
 

@@ -196,6 +196,8 @@ def _default(model, ellipsoids, body_ids=None, drop_overlapping_at_qpos0=True):
     if len(pairs):
         return pairs, None
     bodies = list(dict.fromkeys(rules.ids.tolist()))
+    if not bodies:
+        return pairs, "no pair to check: the ellipsoid set is empty (nothing to bound)"
     if len(bodies) < 2:
         return pairs, f"no pair to check: every ellipsoid is on body {body_label(model, bodies[0])!r}"
     if collided:

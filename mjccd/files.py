@@ -3,15 +3,19 @@
 Every file is written under a temporary name in its own folder and renamed
 into place only when complete (a rename within a folder is atomic), so an
 interrupted run leaves the old file or nothing, never a truncated one.  A
-folder of outputs (:class:`OutputFolder`) is written all-or-nothing: its
-manifest, which lists the files of the run, is written last, and a failed or
-interrupted run removes what it wrote.  Existing files, a command's own
+folder of outputs (:class:`OutputFolder`) is written all-or-nothing: the run
+is staged beside the earlier one and swapped in only when complete, its
+manifest (the list of the run's files) written last; a failed or interrupted
+run leaves the earlier one in place, and a second run into a folder in use is
+refused.  Existing files, a command's own
 inputs and folders that hold another run's files are refused unless the user
 passes ``--force``.
 """
+import fcntl
 import fnmatch
 import json
 import os
+import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,6 +23,8 @@ from pathlib import Path
 from mjccd.errors import OutputError
 
 MANIFEST = ".mjccd-manifest.json"
+LOCK = ".mjccd.lock"        # the lock file of a folder a run is writing into (OutputFolder)
+STAGING = ".mjccd-new-"     # the prefix of a run's staging folder inside it
 
 
 def _same_file(a, b):
@@ -85,16 +91,25 @@ def write_text(path, text):
 
 
 class OutputFolder:
-    """A folder of one run's outputs, written all-or-nothing.
+    """A folder of one run's outputs, written all-or-nothing and swapped in only when complete.
 
     ``tool`` names the command (kept in the manifest).  A folder that already
-    holds files is refused, unless ``force``: then the files an earlier run of
-    this tool wrote there (its manifest's list, and for folders from before
-    manifests, names matching ``patterns``) are removed first; anything else
-    is left alone.  Use as a context manager; open files with :meth:`open`.
-    On an error or an interrupt inside the block, the files written so far
-    are removed (and the folder, if this run created it and it is empty);
-    otherwise the manifest is written last.
+    holds files is refused (when this object is made, before any work),
+    unless ``force``: then the files an earlier run of this tool wrote there
+    (its manifest's list, and for folders from before manifests, names
+    matching ``patterns``) are replaced; anything else is left alone.
+
+    Use as a context manager around the whole run.  On entry the folder is
+    made if missing and *locked* (``fcntl.flock`` on a lock file in it,
+    released by the system even when the process is killed): a second run
+    into the same folder is refused at once.  The run's files go to a hidden
+    staging folder inside it (:meth:`open`); only when the block ends without
+    error are they moved into place (each by an atomic rename, over the
+    earlier file of the same name), the earlier run's other files removed
+    and the manifest written last.  On an error or an interrupt the staging
+    folder is removed and the earlier run's files stay as they were (and the
+    folder, if this run made it, goes).  A staging folder left by a killed
+    run is removed by the next run into the folder.
     """
 
     def __init__(self, path, tool, force=False, patterns=()):
@@ -104,28 +119,29 @@ class OutputFolder:
         self.patterns = tuple(patterns)
         self.written = []
         self._created = False
+        self._lock = None
+        self._staging = None
         if self.path.exists() and not self.path.is_dir():
             raise OutputError(f"{path}: exists and is not a folder")
         if self.path.is_dir():
-            self._clear_earlier_run()
+            self._check_earlier_run()
 
-    def _clear_earlier_run(self):
-        names = sorted(os.listdir(self.path))
-        if not names:
-            return
-        if not self.force:
+    def _names(self):
+        """The folder's entries, its lock and staging folders left out."""
+        return sorted(n for n in os.listdir(self.path) if n != LOCK and not n.startswith(STAGING))
+
+    def _check_earlier_run(self):
+        names = self._names()
+        if names and not self.force:
             shown = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
             raise OutputError(f"{self.path}: holds files of another run ({len(names)}: {shown}); "
                               "choose an empty folder or pass --force to replace this tool's earlier outputs")
+
+    def _earlier_files(self):
+        """The names of the earlier run's files: its manifest's list and the names matching ``patterns``."""
         stale = set(self._manifest_files())
-        stale.update(n for n in names if any(fnmatch.fnmatch(n, pat) for pat in self.patterns))
-        for name in sorted(stale):
-            target = self.path / name
-            if target.is_file():
-                target.unlink()
-        manifest = self.path / MANIFEST
-        if manifest.exists():
-            manifest.unlink()
+        stale.update(n for n in self._names() if any(fnmatch.fnmatch(n, pat) for pat in self.patterns))
+        return stale
 
     def _manifest_files(self):
         try:
@@ -136,35 +152,96 @@ class OutputFolder:
         # only plain names inside this folder: a manifest never removes anything elsewhere
         return [f for f in files if isinstance(f, str) and f == os.path.basename(f) and f not in ("", ".", "..")]
 
+    def _take_lock(self):
+        """Lock the folder (its lock file, made if missing); OutputError when another run holds it."""
+        while True:
+            fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                os.close(fd)
+                raise OutputError(f"{self.path}: another run is writing into this folder; wait for it to end or "
+                                  f"choose another folder") from None
+            try:  # the file a finishing run removed is no lock: take the one at the path now
+                if os.fstat(fd).st_ino == os.stat(self.path / LOCK).st_ino:
+                    self._lock = fd
+                    return
+            except FileNotFoundError:
+                pass
+            os.close(fd)
+
     def __enter__(self):
-        if not self.path.exists():
-            self.path.mkdir(parents=True)
-            self._created = True
+        try:
+            if not self.path.exists():
+                self.path.mkdir(parents=True)
+                self._created = True
+            self._take_lock()
+            self._check_earlier_run()  # again, under the lock: a run may have ended since
+            for name in os.listdir(self.path):  # staging folders of killed runs (none can be alive now)
+                if name.startswith(STAGING):
+                    shutil.rmtree(self.path / name, ignore_errors=True)
+            self._staging = Path(tempfile.mkdtemp(prefix=STAGING, dir=self.path))
+        except BaseException as exc:
+            self._release()
+            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+                raise _cannot_write(self.path, exc) from None
+            raise
         return self
 
     @contextmanager
     def open(self, name, mode="w", **kwargs):
-        """A file of this run, written atomically (see :func:`atomic_open`)."""
-        with atomic_open(self.path / name, mode, **kwargs) as fh:
+        """A file of this run, written atomically into the staging folder (see :func:`atomic_open`)."""
+        with atomic_open(self._staging / name, mode, **kwargs) as fh:
             yield fh
         self.written.append(name)
 
     def file_path(self, name):
-        """Where ``name`` goes (for reading back; write with :meth:`open`)."""
-        return self.path / name
+        """Where ``name`` is: in the staging folder while the run writes, in the folder once it is done."""
+        return (self._staging if self._staging is not None else self.path) / name
 
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is None:
-            write_text(self.path / MANIFEST, json.dumps({"tool": self.tool, "files": self.written}, indent=1) + "\n")
-            return False
+    def _swap_in(self):
+        """Move the staged files over the earlier run's, remove the rest of its files, write the manifest."""
+        stale = self._earlier_files() - set(self.written)
         for name in self.written:
+            os.replace(self._staging / name, self.path / name)
+        for name in sorted(stale):
+            target = self.path / name
+            if target.is_file():
+                target.unlink()
+        write_text(self.path / MANIFEST, json.dumps({"tool": self.tool, "files": self.written}, indent=1) + "\n")
+
+    def _release(self):
+        """Remove the staging folder, the lock (and the folder when this run made it and it is empty)."""
+        if self._staging is not None:
+            shutil.rmtree(self._staging, ignore_errors=True)
+            self._staging = None
+        if self._lock is not None:
             try:
-                (self.path / name).unlink()
+                os.unlink(self.path / LOCK)
             except FileNotFoundError:
                 pass
+            os.close(self._lock)
+            self._lock = None
         if self._created:
             try:
                 self.path.rmdir()
             except OSError:
                 pass
+
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            if exc_type is None:
+                self._swap_in()
+                self._created = False  # it holds the run now
+            else:
+                self.written = []
+        except OSError as exc:
+            raise _cannot_write(self.path, exc) from None
+        finally:
+            self._release()
         return False
+
+
+def _cannot_write(path, exc):
+    """The OutputError of an OSError met writing into the folder ``path``."""
+    return OutputError(f"{exc.filename or path}: cannot write: {exc.strerror or exc}")

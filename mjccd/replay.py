@@ -734,18 +734,20 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
                                            for g in set(on_planes[:, 1].tolist())})
         checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
     rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
-    _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
-    if folder is not None:
+    if folder is None:
+        _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
+        return result
+    with folder:  # locked for the whole run; the earlier run's files stay until this one is complete
+        _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
         try:
-            with folder:
-                write_reports(result, folder)
-                if render:
-                    render_frames(model, rendered, result, folder, max_rendered)
+            write_reports(result, folder)
+            if render:
+                render_frames(model, rendered, result, folder, max_rendered)
         except OutputError:
             raise
         except OSError as exc:
             raise OutputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror or _reason(exc)}") from None
-        result.files = [str(folder.file_path(name)) for name in folder.written]
+    result.files = [str(folder.file_path(name)) for name in folder.written]
     return result
 
 
@@ -753,8 +755,9 @@ def output_folder(out_dir, force=False):
     """The :class:`OutputFolder` for ``out_dir``, checked before the replay runs so that a bad ``--out`` costs no time.
 
     Refuses a file, a folder holding another run's files (unless ``force``:
-    then this tool's earlier outputs there are removed now), and a path that
-    cannot become a folder.
+    then this tool's earlier outputs there are replaced once the new run is
+    complete), and a path that cannot become a folder.  A second run into a
+    folder in use is refused when it starts (the folder's lock).
     """
     folder = OutputFolder(out_dir, "replay", force=force, patterns=OUTPUT_PATTERNS)
     nearest = next(p for p in (folder.path, *folder.path.parents) if p.exists())

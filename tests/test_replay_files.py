@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mjccd import replay
-from mjccd.files import MANIFEST
+from mjccd.files import MANIFEST, STAGING, OutputFolder
 from mjccd.mujoco import ModelAdapter
 from mjccd.mujoco.geoms import GeomChecker
 
@@ -126,3 +126,38 @@ def test_sigint_ends_cleanly(tmp_path):
     assert text.rstrip().endswith("mjccd: interrupted"), text
     assert "Traceback" not in text and "SystemError" not in text
     assert sorted(os.listdir(tmp_path)) == ["long.npz", "stderr.txt"]  # no output folder, no temporary file
+
+
+def test_an_interrupted_forced_run_leaves_the_earlier_run_in_place(tmp_path, monkeypatch, short_traj):
+    """--force replaces the earlier run only once the new one is complete: a Ctrl-C (or a failure) before that
+    leaves every earlier file as it was, and no staging folder or lock behind."""
+    out = tmp_path / "out"
+    _earlier_run(out)
+    before = {p.name: p.read_text() for p in out.iterdir()}
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(replay, "write_reports", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        replay.replay(MODEL, short_traj, "rigid", out, force=True, progress=False, render=False)
+    assert {p.name: p.read_text() for p in out.iterdir()} == before
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused(tmp_path, capsys, short_traj):
+    """While one run holds the folder (its lock), another is refused at once, even with --force, and deletes
+    nothing; a staging folder a killed run left behind is removed by the next run."""
+    out = tmp_path / "out"
+    _earlier_run(out)
+    before = {p.name: p.read_text() for p in out.iterdir()}
+    with pytest.raises(InterruptedError):  # the holder is itself abandoned: it writes nothing either
+        with OutputFolder(out, "replay", force=True, patterns=replay.OUTPUT_PATTERNS):
+            assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render", "--force"]) == 2
+            err = capsys.readouterr().err
+            assert "another run is writing into this folder" in err and str(out) in err
+            raise InterruptedError
+    assert {p.name: p.read_text() for p in out.iterdir()} == before
+    (out / (STAGING + "killed")).mkdir()
+    (out / (STAGING + "killed") / "contacts.json").write_text("half")
+    assert replay.main([str(MODEL), str(short_traj), "--out", str(out), "--no-render", "--force"]) == 0
+    assert sorted(os.listdir(out)) == sorted(REPORTS + [MANIFEST, "notes.txt"])

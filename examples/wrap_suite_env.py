@@ -1,9 +1,11 @@
 """Wrap a dm-control suite task and let a controller react to exact predicted contacts.
 
 The humanoid is driven by smooth random torques.  After every control step
-the wrapper reports the first contact between two of its limbs' bounding
-ellipsoids within that step (time, bodies, point, normal).  When one is
-reported the controller brakes: it damps its torques for the next few steps.
+the wrapper reports the first new contact between two of its geoms (limbs and
+floor, exactly: geoms mode) within that step (time, bodies, point, normal).
+When one is reported the controller brakes: it damps its torques for the next
+few steps.  A contact the solver could only bracket is ``uncertain`` and
+carries its estimate's point when it has one.
 
     python examples/wrap_suite_env.py [--steps 300] [--domain humanoid_CMU --task stand]
 """
@@ -46,12 +48,15 @@ def main(argv=None):
             brake = 5
             c = env.last_contacts[0]
             if contacts <= 5:
+                where = "" if c.point is None else f" at {np.round(c.point, 3)}"
+                flag = "" if c.certainty == "certified" else " (uncertain)"
                 print(f"step {step:4d}: {c.bodies[0]} touches {c.bodies[1]} in "
-                      f"{1e3 * obs['ccd/contact_time']:.3f} ms at {np.round(c.point, 3)}")
+                      f"{1e3 * obs['ccd/contact_time']:.3f} ms{where}{flag}")
         if timestep.last():
             timestep = env.reset()
     print(f"{contacts} of {args.steps} control steps had a predicted limb contact "
-          f"({len(env.monitor.pairs)} ellipsoid pairs checked per physics step)")
+          f"({len(env.monitor.pairs)} {'geom' if env.monitor.mode == 'geoms' else 'ellipsoid'} pairs checked per "
+          f"physics step)")
     return 0
 
 

@@ -46,6 +46,11 @@ margins below) is reported as overlapping, as the rigid pipeline does;
 everything else goes to the exact solver, and so does every pair of a body
 whose hinge angles leave (-pi, pi) (the chain motion refuses those).
 
+(3) Static planes (:func:`plane_outcomes`): the body's lowest point along the
+plane's normal, in its t0 pose dilated by its sweep, stays above the plane
+(over the whole step, else over each of its halves, as for pairs); or at
+t = 0 it lies below the plane by more than its margin (overlapping).
+
 The poses are computed here from the chain's elements in double precision;
 a relative margin of :data:`MARGIN` on each body's reach (the sum of its
 chain's offsets) covers their rounding and that of the exact solver's own
@@ -378,6 +383,67 @@ def filter_step(kind, vec, quat, adr, start, q0, q1, radii, rmax, pairs, cache_n
 
 
 @_inline
+def _above(P, row, radii, e, n0, n1, n2, d):
+    """How far the lowest point along n of body e posed by ``P[row]``, dilated by its sweep and margin, lies
+    above the plane n . x = d, less a rounding margin (> 0: above it)."""
+    low = n0 * P[row, 0] + n1 * P[row, 1] + n2 * P[row, 2] - _support(P, row, radii, e, n0, n1, n2)[0]
+    rounding = ROUNDING * (abs(P[row, 0]) + abs(P[row, 1]) + abs(P[row, 2]) + abs(d) + P[row, 9] + P[row, 7]
+                           + P[row, 8])
+    return low - P[row, 7] - P[row, 8] - d - rounding
+
+
+@_jit
+def plane_outcomes(kind, vec, quat, adr, start, q0, q1, radii, rmax, rows, planes, ws, outcome):
+    """``outcome[r]`` for each plane pair r (rows (Q, 2): ellipsoid, plane; planes (K, 4): unit normal n and
+    offset d, the solid n . x <= d) over the step of joint values q0 to q1, after :func:`filter_step` filled
+    the node poses of ``ws``:
+
+    * SPHERE: the body stays above the plane over the whole step: in a node's pose dilated by its sweep and
+      margin, its lowest point along n is above d by more than a rounding margin, for the whole step from
+      t0 = 0 or 1, else for each piece of it halved down to :data:`MAX_DEPTH` (node at the piece's middle);
+    * OVERLAP_T0: at t = 0 its lowest point lies below d by more than its margin and a rounding margin (the
+      exact pose then overlaps the solid);
+    * EXACT: neither (the exact solver decides).
+    """
+    P0, P1, rec, PN, stack, _, _ = ws
+    for r in range(rows.shape[0]):
+        e, k = rows[r, 0], rows[r, 1]
+        n0, n1, n2, d = planes[k, 0], planes[k, 1], planes[k, 2], planes[k, 3]
+        outcome[r] = EXACT
+        if P0[e, 11] != 0.0 or P1[e, 11] != 0.0:
+            continue
+        if _above(P0, e, radii, e, n0, n1, n2, d) > 0.0 or _above(P1, e, radii, e, n0, n1, n2, d) > 0.0:
+            outcome[r] = SPHERE
+            continue
+        # undilated at t = 0: below the plane by more than the margin is an overlap
+        if _above(P0, e, radii, e, n0, n1, n2, d) + P0[e, 7] + 2.0 * P0[e, 8] < -2.0 * ROUNDING * (
+                abs(P0[e, 0]) + abs(P0[e, 1]) + abs(P0[e, 2]) + abs(d) + P0[e, 9] + P0[e, 7] + P0[e, 8]):
+            outcome[r] = OVERLAP_T0
+            continue
+        stack[0, 0], stack[0, 1], stack[0, 2] = 0.5, 1.0, 1.0
+        stack[1, 0], stack[1, 1], stack[1, 2] = 0.0, 0.5, 1.0
+        top = 2
+        clear = True
+        while top > 0:
+            top -= 1
+            lo, hi, depth = stack[top, 0], stack[top, 1], stack[top, 2]
+            mid = 0.5 * (lo + hi)
+            node_pose(kind, vec, quat, adr, start, q0, q1, e, mid, lo, hi, rmax[e], rec, PN, 0)
+            gap = _above(PN, 0, radii, e, n0, n1, n2, d)
+            if gap > 0.0:
+                continue
+            # the node's own pose may touch the plane (no halving helps), or no depth left
+            if gap + PN[0, 7] + PN[0, 8] <= 0.0 or depth >= MAX_DEPTH or PN[0, 11] != 0.0:
+                clear = False
+                break
+            stack[top, 0], stack[top, 1], stack[top, 2] = mid, hi, depth + 1
+            stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = lo, mid, depth + 1
+            top += 2
+        if clear:
+            outcome[r] = SPHERE
+
+
+@_inline
 def _overlap(radii, P0, i, j, shrunk):
     """True when the two overlap at t = 0 even with A shrunk by the poses' margins.
 
@@ -586,6 +652,7 @@ class ChainFilter:
         self.reset_cache()
         self._ws = workspace(len(program), len(program.kind))
         self._width = program.width()
+        self._q = None  # the joint values of the last step (plane_outcomes reads them)
 
     def reset_cache(self):
         self.cache_n = np.zeros((len(self.pairs), 3))
@@ -599,7 +666,20 @@ class ChainFilter:
         p = self.program
         filter_step(p.kind, p.vec, p.quat, p.adr, p.start, q0, q1, self.radii, self.rmax, self.pairs,
                     self.cache_n, self.cache_ok, self.outcome, self.counters, self._ws)
+        self._q = (q0, q1)
         return self.outcome
+
+    def plane_outcomes(self, planes, rows):
+        """(Q,) int8 outcomes SPHERE (free), OVERLAP_T0 or EXACT of the plane pairs ``rows`` (Q, 2: ellipsoid,
+        plane row of ``planes`` (K, 4), unit normals) over the step of the last :meth:`step`
+        (:func:`plane_outcomes`)."""
+        outcome = np.full(len(rows), EXACT, dtype=np.int8)
+        if len(rows):
+            p = self.program
+            plane_outcomes(p.kind, p.vec, p.quat, p.adr, p.start, self._q[0], self._q[1], self.radii, self.rmax,
+                           np.ascontiguousarray(rows, dtype=np.int64), np.ascontiguousarray(planes, dtype=np.float64),
+                           self._ws, outcome)
+        return outcome
 
     def poses(self, q0, q1, t):
         """(N, 3) centres and (N, 4) unit quaternions at time t (for checks against the chain's own pose)."""

@@ -365,3 +365,21 @@ def test_huge_ellipsoid_is_refused_by_name(tmp_path):
     np.savez(traj, qpos=np.tile([0, 0, 0, 1, 0, 0, 0.0], (3, 1)), time=np.arange(3.0))
     with pytest.raises(replay.ReplayError, match=r"huge.xml: ellipsoid 'big' has semi-axes \[1e\+300, 0.1, 0.1\]"):
         replay.replay(model, traj, progress=False)
+
+
+def test_chain_replay_with_floors_is_the_same_with_and_without_the_plane_filter(tmp_path, monkeypatch):
+    """Chain motion, floors on: the sweep-bound plane filter (chain_bounds.plane_outcomes) decides most foot-floor
+    pairs without the exact solver; contacts.csv is byte for byte the one every pair solved exactly gives."""
+    from mjccd import chain_bounds
+
+    clip = tmp_path / "clip.npz"
+    with np.load(TRAJ) as d:
+        np.savez(clip, qpos=d["qpos"][:240], time=d["time"][:240])
+    fast = replay.replay(MODEL, clip, "chain", tmp_path / "fast", progress=False, render=False, mode="ellipsoids")
+    decided = fast.counters["sphere_culled"] + fast.counters["overlapping_t0"]
+    monkeypatch.setattr(chain_bounds.ChainFilter, "plane_outcomes",
+                        lambda self, planes, rows: np.full(len(rows), chain_bounds.EXACT, dtype=np.int8))
+    slow = replay.replay(MODEL, clip, "chain", tmp_path / "slow", progress=False, render=False, mode="ellipsoids")
+    assert slow.counters["solved_exactly"] > fast.counters["solved_exactly"] + 1000 and decided
+    assert (tmp_path / "fast" / "contacts.csv").read_bytes() == (tmp_path / "slow" / "contacts.csv").read_bytes()
+    assert len(fast.contacts) > 10

@@ -139,7 +139,7 @@ class ModelAdapter:
             if motion != "chain" and (len(self.pairs) or len(plane_rows)) else None
         self._plane_rows = plane_rows
         self.chain_filter = cb.ChainFilter(self.chains.program, self.radii, self.pairs) \
-            if motion == "chain" and chain_filters and len(self.pairs) else None
+            if motion == "chain" and chain_filters and (len(self.pairs) or len(plane_rows)) else None
         self._cached = None  # (state, poses) of the last end state
         # the scene's per-pair answers and outcome counters of its last check (its own buffers, read after each)
         self._answers = self.scene.workspace.arrays if self.scene is not None else None
@@ -417,9 +417,22 @@ class ModelAdapter:
                 t_max = min(t_max, c.fraction)
         npairs = len(self.pairs)
         counters["pairs"] += len(self._plane_rows)
-        for row, (i, plane) in enumerate(self._plane_rows.tolist()):  # planes: the exact solver, no filter
+        decided = (self.chain_filter.plane_outcomes(self.planes, self._plane_rows) if self.chain_filter is not None
+                   else np.full(len(self._plane_rows), cb.EXACT, dtype=np.int8))
+        for row, (i, plane) in enumerate(self._plane_rows.tolist()):  # planes: the sweep bounds, else exactly
+            if decided[row] == cb.SPHERE:
+                counters["sphere_culled"] += 1
+                continue
             if t_max == 0.0:
                 counters["pruned"] += 1
+                continue
+            if decided[row] == cb.OVERLAP_T0:  # as the exact solver answers it: overlapping at t = 0
+                counters["overlapping_t0"] += 1
+                counters["colliding"] += 1
+                if not new_only:
+                    contacts.append(self.contact(s0.time, s1.time, npairs + row, 0.0, None, None, p0,
+                                                 status="overlapping"))
+                    t_max = t_max if all_pairs else 0.0
                 continue
             if i not in motions:
                 motions[i] = chains.motion(i, v0, v1)

@@ -491,3 +491,49 @@ def test_a_gymnasium_wrapper_without_pairs_adds_the_no_contact_entries():
     assert np.isinf(info["contact_time"]) and tuple(info["contact_pair"]) == (-1, -1)
     assert (info["contacts"], info["reports"], info["unstable"]) == ([], [], False)
     assert (wrapped.last_contacts, wrapped.last_reports) == ([], [])
+
+
+CLOSE_RODS = """
+<mujoco>
+  <option gravity="0 0 0"/>
+  <worldbody>
+    <body name="rod_a" pos="0 0 1"><freejoint/><geom type="capsule" fromto="-0.5 0 0 0.5 0 0" size="0.02"/></body>
+    <body name="rod_b" pos="0 0.045 1"><freejoint/><geom type="capsule" fromto="-0.5 0 0 0.5 0 0" size="0.02"/></body>
+    <body name="ball" pos="0 1 1"><freejoint/><geom type="sphere" size="0.05"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_no_pair_mujoco_collides_is_left_out_without_a_warning():
+    """Two rods 5 mm apart whose one-per-body ellipsoids overlap in qpos0: ellipsoid mode leaves their pair out
+    and says so (naming it); every body pair in MuJoCo's data.contact as the rods are pushed together is
+    either checked or named in that warning; geoms mode checks it."""
+    import warnings
+
+    from mjccd.mujoco import CCDMonitor, fit_model
+    from mjccd.mujoco.warnings import CoverageWarning
+
+    model = mujoco.MjModel.from_xml_string(CLOSE_RODS)
+    data = mujoco.MjData(model)
+    ellipsoids = fit_model(model)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        monitor = CCDMonitor(model, data, ellipsoids, mode="ellipsoids")
+    said = " ".join(str(w.message) for w in caught if issubclass(w.category, CoverageWarning))
+    assert "rod_a-rod_b" in said
+    checked = {tuple(sorted(monitor.labels[b] for b in pair)) for pair in
+               (ellipsoids.body_ids(model)[list(p)] for p in monitor.pairs)}
+    data.qvel[6:9] = [0.0, -0.5, 0.0]  # rod_b towards rod_a
+    touched = set()
+    for _ in range(200):
+        mujoco.mj_step(model, data)
+        for k in range(data.ncon):
+            b1, b2 = model.geom_bodyid[data.contact[k].geom1], model.geom_bodyid[data.contact[k].geom2]
+            touched.add(tuple(sorted((monitor.labels[b1], monitor.labels[b2]))))
+    assert ("rod_a", "rod_b") in touched
+    for a, b in touched:
+        assert (a, b) in checked or f"{a}-{b}" in said, (a, b)
+    geoms = CCDMonitor(model, mujoco.MjData(model), ellipsoids)
+    assert any({geoms.labels[geoms.geoms.body[i]], geoms.labels[geoms.geoms.body[j]]} == {"rod_a", "rod_b"}
+               for i, j in geoms.pairs)

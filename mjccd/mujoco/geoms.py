@@ -211,7 +211,7 @@ class GeomChecker:
         else:
             if ellipsoids is None:
                 raise ValueError("ellipsoids: needed to read the body pairs of a pairs argument")
-            chosen, why = pairs_with_reason(m, ellipsoids, pairs)
+            chosen, why = pairs_with_reason(m, ellipsoids, pairs, drop_overlapping_at_qpos0=False)
             ids = ellipsoids.body_ids(m)
             bodies = {(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in chosen.tolist()}
             for a in solid.tolist():

@@ -95,7 +95,7 @@ def selected_adapter(model, ellipsoids, pairs, motion, planes, stacklevel=2):
     the static planes MuJoCo collides with the ellipsoids' geoms.  Each geom it cannot check is warned about
     once, as is a selection that leaves nothing to check; the warnings name the line ``stacklevel`` frames up
     from the caller's (1: the caller's line, 2: its caller's)."""
-    chosen, why = pairs_with_reason(model, ellipsoids, pairs)
+    chosen, why = pairs_with_reason(model, ellipsoids, pairs, stacklevel=stacklevel + 1)
     on_planes = plane_pairs(model, ellipsoids) if planes else None
     if planes:
         warn_uncovered(model, ellipsoids, stacklevel=stacklevel + 2)

@@ -182,17 +182,28 @@ def _static_poses(model, ellipsoids, ids):
     return Kinematics(model).ellipsoid_poses(state, ids, ellipsoids.positions, ellipsoids.quaternions)
 
 
-def _default(model, ellipsoids, body_ids=None, drop_overlapping_at_qpos0=True):
-    """``(pairs, why)``: :func:`default_pairs` and, when there are none, a sentence saying why (else None)."""
+def _default(model, ellipsoids, body_ids=None, drop_overlapping_at_qpos0=True, stacklevel=2):
+    """``(pairs, why)``: :func:`default_pairs` and, when there are none, a sentence saying why (else None).
+    The warning naming dropped pairs points ``stacklevel`` frames up from the caller's line (1: that line)."""
     rules = _Rules(model, ellipsoids, body_ids)
     candidates, reason = rules.ellipsoid_pairs()
     pairs = candidates[reason == COLLIDED]
     collided = len(pairs)
     if drop_overlapping_at_qpos0 and len(pairs):
         poses = _static_poses(model, ellipsoids, rules.ids)
-        keep = [static_status_code(ellipsoids.radii[i], poses[i, :3], poses[i, 3:],
-                                   ellipsoids.radii[j], poses[j, :3], poses[j, 3:]) == 1 for i, j in pairs]
-        pairs = pairs[np.asarray(keep, dtype=bool)]
+        keep = np.array([static_status_code(ellipsoids.radii[i], poses[i, :3], poses[i, 3:],
+                                            ellipsoids.radii[j], poses[j, :3], poses[j, 3:]) == 1 for i, j in pairs],
+                        dtype=bool)
+        if len(pairs) and not keep.all() and keep.any():  # never silently (none left: the reason below says so)
+            names = sorted({tuple(sorted((body_label(model, rules.ids[i]), body_label(model, rules.ids[j]))))
+                            for i, j in pairs[~keep].tolist()})
+            shown = ", ".join(f"{a}-{b}" for a, b in names[:10]) + (f" and {len(names) - 10} more"
+                                                                     if len(names) > 10 else "")
+            warnings.warn(f"ellipsoid mode leaves out {len(names)} body pair(s) MuJoCo collides whose ellipsoids "
+                          f"already touch or overlap in qpos0 (drop_overlapping_at_qpos0): {shown}; geoms mode "
+                          f"(the default with the rigid motion) checks their real geoms", CoverageWarning,
+                          stacklevel=stacklevel + 1)
+        pairs = pairs[keep]
     if len(pairs):
         return pairs, None
     bodies = list(dict.fromkeys(rules.ids.tolist()))
@@ -224,9 +235,10 @@ def default_pairs(model, ellipsoids, *, drop_overlapping_at_qpos0=True):
     its body.  A pair is kept when some geom of one and some geom of the other would be collided.
     With ``drop_overlapping_at_qpos0`` the pairs whose ellipsoids already touch or overlap in the
     reference pose ``qpos0`` are dropped too: close neighbours (a hip and the lower back) would
-    otherwise report a contact at every step.  Planes are :func:`plane_pairs`.
+    otherwise report a contact at every step; a :class:`~mjccd.mujoco.warnings.CoverageWarning` names
+    them.  Planes are :func:`plane_pairs`.
     """
-    return _default(model, ellipsoids, drop_overlapping_at_qpos0=drop_overlapping_at_qpos0)[0]
+    return _default(model, ellipsoids, drop_overlapping_at_qpos0=drop_overlapping_at_qpos0, stacklevel=2)[0]
 
 
 def _static_plane(model, geom):
@@ -415,11 +427,14 @@ def _tops(model, ids):
     return list(dict.fromkeys(int(t) for t in model.body_rootid[ids]))
 
 
-def pairs_with_reason(model, ellipsoids, pairs, body_ids=None, field="pairs"):
+def pairs_with_reason(model, ellipsoids, pairs, body_ids=None, field="pairs", *, drop_overlapping_at_qpos0=True,
+                      stacklevel=2):
     """``(pairs (P, 2), reason)``: the ellipsoid pairs :func:`select_pairs` picks for ``pairs`` and, when there
-    are none, one sentence saying why (``reason`` is None otherwise).  Nothing is warned."""
+    are none, one sentence saying why (``reason`` is None otherwise).  Nothing is warned but the pairs
+    :func:`default_pairs` drops because their ellipsoids overlap in qpos0 (with ``drop_overlapping_at_qpos0``;
+    the warning points ``stacklevel`` frames up from the caller's line)."""
     if pairs is None:
-        return _default(model, ellipsoids, body_ids)
+        return _default(model, ellipsoids, body_ids, drop_overlapping_at_qpos0, stacklevel + 1)
     if isinstance(pairs, str):
         if pairs not in PAIR_RULES:
             raise InputError(f"{field}: expected None, 'characters', 'self' or a list of (body, body) pairs, "
@@ -451,7 +466,7 @@ def select_pairs(model, ellipsoids, pairs, body_ids=None, field="pairs"):
     When a rule leaves no pair, a :class:`~mjccd.mujoco.warnings.CoverageWarning` says why (e.g. "no pair
     to check: every body pair is filtered by contype/conaffinity; ...").
     """
-    chosen, reason = pairs_with_reason(model, ellipsoids, pairs, body_ids, field)
+    chosen, reason = pairs_with_reason(model, ellipsoids, pairs, body_ids, field, stacklevel=2)
     if reason is not None:
         warnings.warn(reason, CoverageWarning, stacklevel=2)
     return chosen

@@ -669,10 +669,17 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
                     counters[8] += 1
             else:
                 counters[5] += 1
-                if new_only and status0 != 1:
+                if status0 != 1:  # touching at the start (or within rounding of it): in contact, never new
                     outcome[k] = OVERLAP_T0
                     counters[4] += 1
                     counters[6] += 1
+                    if not new_only:
+                        times[k] = 0.0
+                        for m in range(3):
+                            points[k, m] = 0.0
+                            normals[k, m] = 0.0
+                        if best > 0.0:
+                            best, best_k = 0.0, k
                 elif nruns > 0 or not certified:
                     # the first contact is known when its run is proven with a narrow entry bracket
                     known = nruns > 0 and runs[0, 6] > 0.0 and max(runs[0, 0] - runs[0, 2],

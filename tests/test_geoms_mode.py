@@ -192,3 +192,26 @@ def test_the_filters_never_change_an_answer():
             if alone.status_at_start == "separate":
                 assert c.certainty == alone.certainty and abs(c.fraction - alone.time) <= 1e-12, (c, alone)
     assert culled > 1000 and contacts > 20, (culled, contacts)
+
+
+def test_a_ball_tangent_to_the_floor_is_touching_in_either_mode_never_a_new_contact():
+    """dm-control's reacher keeps its finger sphere exactly on the floor: with no gravity the ball below stays
+    tangent.  Every step reports it touching at the start (one status, certified), in geoms mode and in
+    ellipsoid mode with an exact ellipsoid, and never as a new contact (report_overlapping=False: nothing)."""
+    from mjccd.mujoco import EllipsoidSet
+
+    model = mujoco.MjModel.from_xml_string(RESTING.replace('<option timestep="0.002"/>',
+                                                           '<option timestep="0.002" gravity="0 0 0"/>'))
+    exact = EllipsoidSet(bodies=["ball", "crate"], radii=[[0.1, 0.1, 0.1], [0.2, 0.2, 0.2]],
+                         positions=np.zeros((2, 3)), quaternions=[[1, 0, 0, 0]] * 2)
+    for mode in ("geoms", "ellipsoids"):
+        data = mujoco.MjData(model)
+        monitor = CCDMonitor(model, data, exact, mode=mode, all_pairs=True)
+        seen = set()
+        for _ in range(20):
+            monitor.step()
+            seen |= {(c.status_at_start, c.certainty) for c in monitor.last_report.contacts
+                     if c.bodies == ("ball", "world")}
+        assert seen == {("touching", "certified")}, (mode, seen)
+        quiet = CCDMonitor(model, mujoco.MjData(model), exact, mode=mode, report_overlapping=False)
+        assert all(quiet.step() is None for _ in range(20)), mode

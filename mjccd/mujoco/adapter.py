@@ -24,6 +24,7 @@ import numpy as np
 from mjccd import chain_bounds as cb
 from mjccd.ccd import first_contact
 from mjccd.errors import InputError, InputTypeError
+from mjccd.filters import EPS
 from mjccd.motion import Affine, Rigid
 from mjccd.plane import Plane, plane_first_contact
 from mjccd.quadric import Ellipsoid, static_status_code
@@ -47,7 +48,12 @@ def plane_clearance(radii, pose, plane):
     tx, ty, tz = 2.0 * (uy * nz - uz * ny), 2.0 * (uz * nx - ux * nz), 2.0 * (ux * ny - uy * nx)
     lx, ly, lz = nx + w * tx + (uy * tz - uz * ty), ny + w * ty + (uz * tx - ux * tz), nz + w * tz + (ux * ty - uy * tx)
     a, b, c = radii.tolist()
-    return nx * x + ny * y + nz * z - offset - math.sqrt((a * lx) ** 2 + (b * ly) ** 2 + (c * lz) ** 2)
+    height = nx * x + ny * y + nz * z - offset
+    support = math.sqrt((a * lx) ** 2 + (b * ly) ** 2 + (c * lz) ** 2)
+    # within rounding of tangent counts as tangent (the exact solver's "touching or undecided" at the start)
+    if abs(height - support) <= 64.0 * EPS * (abs(x) + abs(y) + abs(z) + abs(offset) + support):
+        return 0.0
+    return height - support
 
 
 def load_model(source, *, field="model"):
@@ -341,8 +347,8 @@ class ModelAdapter:
         first = None
         if best_k >= 0:
             a = self._answers
-            if a.outcome[best_k] == OVERLAP_T0:  # in contact at t = 0, proven by the scene's static test
-                first = self.contact(t0, t1, best_k, 0.0, None, None, p0, status="overlapping")
+            if a.outcome[best_k] == OVERLAP_T0:  # in contact at t = 0: touching or overlapping, by its start poses
+                first = self.contact(t0, t1, best_k, 0.0, None, None, p0)
             else:
                 first = self._converted(t0, t1, first_of(best_k, a.outcome, a.times, a.times_hi, a.points,
                                                          a.normals), p0)
@@ -350,11 +356,10 @@ class ModelAdapter:
 
     def _converted(self, t0, t1, hit, p0):
         """The :class:`StepContact` of a scene contact (``FirstContact``, ``PairContact`` or ``PlaneContact``) of
-        the scene's last check: a pair that its outcome proves in contact at t = 0 is overlapping (the static
-        status the scene's kernel computed: for a plane, the ellipsoid reaching below it by more than a
-        relative 1e-9)."""
-        status = "overlapping" if self._answers.outcome[hit.pair] == OVERLAP_T0 else None
-        return self.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket, status)
+        the scene's last check: a pair in contact at t = 0 (its outcome OVERLAP_T0: overlapping by the scene's
+        static test, or touching within rounding by the exact solver) is touching or overlapping by its start
+        poses (:meth:`contact`)."""
+        return self.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket)
 
     def _check_chain(self, s0, s1, poses, names, all_pairs, new_only):
         """Chain motions: the chain filters, then the exact solver pair by pair."""

@@ -16,7 +16,15 @@ Two filters clear a pair without a solve; both are proven, never guesses:
   its longest axis, an ellipsoid of radii a >= b about its a axis with
   radius b and half length a - b); when the proxies lie further apart at the
   step's start than M_A + M_B, the pair cannot touch.  Against a plane the
-  proxy's height plays the distance.
+  proxy's height plays the distance.  Where the whole step does not clear, the
+  same test runs on halves of it (the proxies' gap at each half's middle,
+  how far their points move from there over the half), halved again down to
+  pieces of 1/16 of the step: pairs that come near without touching clear.
+
+A geom certainly reaching below a static plane at the step's start (:func:`below_plane`: its lowest
+point along the normal, with a relative margin), or two spheres or capsules whose cores lie closer than
+their radii (:func:`cores_overlap`), are overlapping without a solve: bodies resting on a floor or on each
+other, every step.
 
 A pair may also be given a *minimum motion*: when ``M_A + M_B`` (how far any
 point of one can move relative to the other) stays below it, the pair is
@@ -172,7 +180,9 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
             return True
         d = _axis(Q0[pa, 3:], ax_a, la)
         low = h0 - abs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) - ra
-        return low > move_a * (1.0 + MARGIN) + MARGIN * (abs(h0) + la + ra)
+        if low > move_a * (1.0 + MARGIN) + MARGIN * (abs(h0) + la + ra):
+            return True
+        return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb)
     e0, e1 = Q0[pb, :3], Q1[pb, :3]
     # moving spheres: the centres' lines
     u = c0 - e0
@@ -188,7 +198,87 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
     # distance of the proxies at the start against how far their points can move
     move_b = _moves(Q0, Q1, pb, reach_b)
     gap = _segment_distance(c0, _axis(Q0[pa, 3:], ax_a, la), e0, _axis(Q0[pb, 3:], ax_b, lb)) - ra - rb
-    return gap > (move_a + move_b) * (1.0 + MARGIN) + MARGIN * (scale + la + lb + ra + rb)
+    if gap > (move_a + move_b) * (1.0 + MARGIN) + MARGIN * (scale + la + lb + ra + rb):
+        return True
+    return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb)
+
+
+@_jit
+def _lerp_pose(Q0, Q1, g, t, out):
+    """out (7,) = geom g's pose at t of its rigid lerp: centre lerp, quaternion lerp the short way, normalised."""
+    s = 1.0 if Q0[g, 3] * Q1[g, 3] + Q0[g, 4] * Q1[g, 4] + Q0[g, 5] * Q1[g, 5] + Q0[g, 6] * Q1[g, 6] >= 0.0 \
+        else -1.0
+    for i in range(3):
+        out[i] = (1.0 - t) * Q0[g, i] + t * Q1[g, i]
+    nq = 0.0
+    for i in range(4):
+        out[3 + i] = (1.0 - t) * Q0[g, 3 + i] + t * s * Q1[g, 3 + i]
+        nq += out[3 + i] * out[3 + i]
+    nq = math.sqrt(nq)
+    for i in range(4):
+        out[3 + i] /= nq
+
+
+@_jit
+def _piece_moves(Q0, Q1, g, reach, lo, mid, hi, P):
+    """How far any point of geom g moves from its pose P[1] at ``mid`` over [lo, hi] (P[0], P[2] its poses at
+    the ends): the centre's share of its straight path, and ``2 sin(theta / 2) reach`` with theta the larger
+    turn from mid to either end (the normalised lerp turns monotonically along one great circle)."""
+    move = math.sqrt((Q1[g, 0] - Q0[g, 0]) ** 2 + (Q1[g, 1] - Q0[g, 1]) ** 2 + (Q1[g, 2] - Q0[g, 2]) ** 2)
+    move *= max(mid - lo, hi - mid)
+    cos = 1.0
+    for e in (0, 2):
+        c = abs(P[1, 3] * P[e, 3] + P[1, 4] * P[e, 4] + P[1, 5] * P[e, 5] + P[1, 6] * P[e, 6])
+        cos = min(cos, c)
+    return move + 2.0 * math.sqrt(max(1.0 - min(cos, 1.0) ** 2, 0.0)) * reach
+
+
+MAX_DEPTH = 4  # halvings of the step for the piecewise test (pieces of 1/16 of the step)
+
+
+@_jit
+def _pieces_clear(kinds, sizes, Q0, Q1, pa, pb):
+    """The distance-against-displacement test on pieces of the step, halved down to MAX_DEPTH: the proxies'
+    gap at each piece's middle against how far their points move over the piece (pb may be a plane: the
+    proxy's height above it plays the gap).  True when every piece clears."""
+    ax_a, la, ra, reach_a = proxy(kinds[pa], sizes[pa])
+    ax_b, lb, rb, reach_b = proxy(kinds[pb], sizes[pb])
+    plane = kinds[pb] == sy.PLANE
+    n = _rotate(Q0[pb, 3:], np.array([0.0, 0.0, 1.0]))
+    A = np.empty((3, 7))
+    B = np.empty((3, 7))
+    scale = MARGIN * (abs(Q0[pa, 0]) + abs(Q0[pa, 1]) + abs(Q0[pa, 2]) + abs(Q0[pb, 0]) + abs(Q0[pb, 1])
+                      + abs(Q0[pb, 2]) + abs(Q1[pa, 0]) + abs(Q1[pa, 1]) + abs(Q1[pa, 2]) + abs(Q1[pb, 0])
+                      + abs(Q1[pb, 1]) + abs(Q1[pb, 2]) + la + lb + ra + rb + reach_a + reach_b)
+    stack = np.empty((2 * MAX_DEPTH + 2, 3))
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0.5, 1.0, 1.0
+    stack[1, 0], stack[1, 1], stack[1, 2] = 0.0, 0.5, 1.0
+    top = 2
+    while top > 0:
+        top -= 1
+        lo, hi, depth = stack[top, 0], stack[top, 1], stack[top, 2]
+        mid = 0.5 * (lo + hi)
+        for r, t in ((0, lo), (1, mid), (2, hi)):
+            _lerp_pose(Q0, Q1, pa, t, A[r])
+            if not plane:
+                _lerp_pose(Q0, Q1, pb, t, B[r])
+        move = _piece_moves(Q0, Q1, pa, reach_a, lo, mid, hi, A)
+        if plane:
+            d = _axis(A[1, 3:], ax_a, la)
+            gap = (n[0] * (A[1, 0] - Q0[pb, 0]) + n[1] * (A[1, 1] - Q0[pb, 1]) + n[2] * (A[1, 2] - Q0[pb, 2])
+                   - abs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) - ra)
+        else:
+            move += _piece_moves(Q0, Q1, pb, reach_b, lo, mid, hi, B)
+            gap = (_segment_distance(A[1, :3], _axis(A[1, 3:], ax_a, la), B[1, :3], _axis(B[1, 3:], ax_b, lb))
+                   - ra - rb)
+        if gap > move * (1.0 + MARGIN) + scale:
+            continue
+        if gap <= scale or depth >= MAX_DEPTH:  # touching at the node (no halving helps), or no depth left
+            return False
+        stack[top, 0], stack[top, 1], stack[top, 2] = mid, hi, depth + 1
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2] = lo, mid, depth + 1
+        top += 2
+    return True
 
 
 @_jit
@@ -204,6 +294,61 @@ def _row(Q0, Q1, g, origin, rows):
     for i in range(4):
         rows[0, 4 + i] = Q0[g, 3 + i]
         rows[0, 11 + i] = s * Q1[g, 3 + i]
+
+
+@_jit
+def below_plane(kinds, sizes, Q0, g, p):
+    """True when geom g certainly reaches below the plane geom p (the solid z <= 0 of its frame) at the step's
+    start by more than a relative MARGIN: its lowest point along the plane's normal n, ``n . (c - o) - h``
+    with h the shape's support along -n, computed from the pose as given.  A body resting on a floor under
+    MuJoCo's soft contacts sinks in by far more, so its pair needs no solve to be overlapping."""
+    n = _rotate(Q0[p, 3:], np.array([0.0, 0.0, 1.0]))
+    q = Q0[g, 3:]
+    height = n[0] * (Q0[g, 0] - Q0[p, 0]) + n[1] * (Q0[g, 1] - Q0[p, 1]) + n[2] * (Q0[g, 2] - Q0[p, 2])
+    kind, size = kinds[g], sizes[g]
+    # the plane's normal in the geom's frame: the columns of its rotation dotted with n
+    m = np.empty(3)
+    for i in range(3):
+        e = np.zeros(3)
+        e[i] = 1.0
+        a = _rotate(q, e)
+        m[i] = abs(a[0] * n[0] + a[1] * n[1] + a[2] * n[2])
+    if kind == sy.SPHERE:
+        h = size[0]
+    elif kind == sy.CAPSULE:
+        h = size[0] + size[1] * m[2]
+    elif kind == sy.CYLINDER:
+        h = size[1] * m[2] + size[0] * math.sqrt(max(0.0, 1.0 - m[2] * m[2]))
+    elif kind == sy.BOX:
+        h = size[0] * m[0] + size[1] * m[1] + size[2] * m[2]
+    elif kind == sy.ELLIPSOID:
+        h = math.sqrt((size[0] * m[0]) ** 2 + (size[1] * m[1]) ** 2 + (size[2] * m[2]) ** 2)
+    else:
+        return False
+    scale = abs(Q0[g, 0]) + abs(Q0[g, 1]) + abs(Q0[g, 2]) + abs(Q0[p, 0]) + abs(Q0[p, 1]) + abs(Q0[p, 2]) + h
+    return height - h < -MARGIN * scale
+
+
+@_jit
+def cores_overlap(kinds, sizes, Q0, ga, gb):
+    """True when two rounded geoms (spheres, capsules) certainly overlap at the step's start: their cores
+    (points, segments) lie closer than the sum of their radii by more than a relative MARGIN."""
+    ax_a, la, ra, _ = proxy(kinds[ga], sizes[ga])
+    ax_b, lb, rb, _ = proxy(kinds[gb], sizes[gb])
+    scale = (abs(Q0[ga, 0]) + abs(Q0[ga, 1]) + abs(Q0[ga, 2]) + abs(Q0[gb, 0]) + abs(Q0[gb, 1]) + abs(Q0[gb, 2])
+             + la + lb + ra + rb)
+    d = _segment_distance(Q0[ga, :3], _axis(Q0[ga, 3:], ax_a, la), Q0[gb, :3], _axis(Q0[gb, 3:], ax_b, lb))
+    return d < ra + rb - MARGIN * scale
+
+
+@_jit
+def _overlapping(o):
+    """out row o of a pair in contact at the step's start, decided without a solve."""
+    for f in range(kn.OUT):
+        o[f] = 0.0
+    o[kn.STATUS] = -1.0
+    o[kn.CERTIFIED] = 1.0
+    o[kn.PROVEN] = 1.0
 
 
 @_jit
@@ -242,6 +387,18 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
             continue
         if min_motion[k] > 0.0 and relative_motion(kinds, sizes, Q0, Q1, ga, gb) < min_motion[k]:
             _cleared(o, TOO_SLOW)
+            continue
+        if kinds[ga] == sy.PLANE or kinds[gb] == sy.PLANE:
+            g, p = (gb, ga) if kinds[ga] == sy.PLANE else (ga, gb)
+            sunk = below_plane(kinds, sizes, Q0, g, p)  # resting on a floor
+        else:
+            sunk = sy.rounded(kinds[ga]) and sy.rounded(kinds[gb]) and cores_overlap(kinds, sizes, Q0, ga, gb)
+        if sunk:  # overlapping at the start, no solve
+            _overlapping(o)
+            if new_only:
+                continue
+            if best < 0 or 0.0 < best_t:
+                best, best_t = k, 0.0
             continue
         origin = (Q0[ga, :3] if kinds[ga] != sy.PLANE else Q0[gb, :3]).copy()
         _row(Q0, Q1, ga, origin, rows_a)

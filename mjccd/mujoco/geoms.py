@@ -292,7 +292,7 @@ class GeomChecker:
         out = np.empty((npairs, kn.OUT))
         gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
                       bool(new_only), *workspaces(), out)
-        contacts = []
+        found = []
         counts = dict.fromkeys(COUNTER_NAMES, 0)
         counts["pairs"] = npairs
         failed = out[:, kn.FAILED]
@@ -316,8 +316,11 @@ class GeomChecker:
                     continue
             counts["colliding"] += 1
             counts["uncertain"] += not certain
-            contacts.append(self._contact(t0, t1, k, frac, point, normal, status, certain, bracket, elements))
-        contacts.sort(key=lambda c: c.fraction)
+            found.append((frac, k, status, point, normal, certain, bracket, elements))
+        found.sort(key=lambda f: f[:2])  # by time, then pair: the first of equal ones first
+        # a StepContact costs more than the check of a small model's step: only those reported are made
+        contacts = [self._contact(t0, t1, k, frac, point, normal, status, certain, bracket, elements)
+                    for frac, k, status, point, normal, certain, bracket, elements in found[:None if all_pairs else 1]]
         first = contacts[0] if contacts else None
         return StepReport(first, tuple(contacts) if all_pairs else (), counts["pairs"], counts["solved_exactly"],
                           counts["uncertain"], False, StepCounters([counts[name] for name in COUNTER_NAMES]))

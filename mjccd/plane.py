@@ -845,7 +845,8 @@ def plane_pair_kernel(affine, radii, p0, q0, p1, q1, plane, t_max, first_only, w
     [nx, ny, nz, offset] with a unit normal; over [0, t_max].  ``work``:
     (PLANE_WORK,) scratch; ``runs``: (R, RUN_FIELDS) output rows (see
     :func:`scan`); ``touch`` (2, 3): the point and normal of the first
-    contact (t > 0), zero when there is none.  Returns (status at start,
+    contact (t > 0), or of the bracket's start when the answer is uncertain
+    (an estimate), zero when there is none.  Returns (status at start,
     number of runs, certified, bracket lo, bracket hi, reached); see
     :func:`verdict`.  Allocates nothing.
     """
@@ -865,6 +866,8 @@ def plane_pair_kernel(affine, radii, p0, q0, p1, q1, plane, t_max, first_only, w
     certified, blo, bhi = verdict(runs, nruns, reached, t_max, first_only)
     if status0 == 1 and nruns > 0 and runs[0, 6] > 0.0 and runs[0, 3] - runs[0, 2] <= 2.0 * TIME_TOL:
         _support_point(affine, radii, p0, q0, p1, q1, plane, runs[0, 0], work, end, touch)
+    elif status0 == 1 and not certified and 0.0 <= blo <= t_max:  # only bracketed: the estimate at its start
+        _support_point(affine, radii, p0, q0, p1, q1, plane, blo, work, end, touch)
     return status0, nruns, certified, blo, bhi, reached
 
 

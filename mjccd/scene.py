@@ -56,7 +56,8 @@ from mjccd import filters as fl
 from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
 from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, plane_pair_kernel, plane_rows
-from mjccd.quadric import quadric_matrix, separating_plane_matrices, static_status_pose
+from mjccd.quadric import (null_vector, pencil_quartic, quadric_matrix, quartic_max, separating_plane_matrices,
+                            static_status_pose)
 from mjccd.sorting import sort_by_key
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
@@ -499,6 +500,57 @@ def _plane_solve(affine, radii, p0, q0, p1, q1_raw, planes, plane_pairs, npairs,
 
 
 @_jit
+def _estimated_touch(ri, p0i, q0i, p1i, q1i, rj, p0j, q0j, p1j, q1j, t, point, normal):
+    """An estimate of where two ellipsoids touch near time t (an uncertain answer's bracket start), into point
+    and normal (zeros when there is none): both posed by the lerp of their poses (q1 of either sign), the
+    point of their pencil at the maximum of its quartic, which is the touching point when they touch (thesis
+    Theorem 4.4)."""
+    for m in range(3):
+        point[m] = 0.0
+        normal[m] = 0.0
+    ci, qi, cj, qj = np.empty(3), np.empty(4), np.empty(3), np.empty(4)
+    si = 1.0 if q0i[0] * q1i[0] + q0i[1] * q1i[1] + q0i[2] * q1i[2] + q0i[3] * q1i[3] >= 0.0 else -1.0
+    sj = 1.0 if q0j[0] * q1j[0] + q0j[1] * q1j[1] + q0j[2] * q1j[2] + q0j[3] * q1j[3] >= 0.0 else -1.0
+    for m in range(3):
+        ci[m] = (1.0 - t) * p0i[m] + t * p1i[m]
+        cj[m] = (1.0 - t) * p0j[m] + t * p1j[m]
+    ni = nj = 0.0
+    for m in range(4):
+        qi[m] = (1.0 - t) * q0i[m] + t * si * q1i[m]
+        qj[m] = (1.0 - t) * q0j[m] + t * sj * q1j[m]
+        ni += qi[m] * qi[m]
+        nj += qj[m] * qj[m]
+    if not (ni > 0.0 and nj > 0.0):
+        return
+    for m in range(4):
+        qi[m] /= np.sqrt(ni)
+        qj[m] /= np.sqrt(nj)
+    A = quadric_matrix(ri, ci, qi)
+    B = quadric_matrix(rj, cj, qj)
+    g, _ = pencil_quartic(A, B)
+    _, u = quartic_max(g)
+    M = np.empty((4, 4))
+    for a in range(4):
+        for b in range(4):
+            M[a, b] = (1.0 - u) * A[a, b] + u * B[a, b]
+    X = null_vector(M)
+    if not (np.isfinite(X[3]) and X[3] != 0.0):
+        return
+    p = np.empty(3)
+    n = np.empty(3)
+    for m in range(3):
+        p[m] = X[m] / X[3]
+    for m in range(3):
+        n[m] = A[m, 0] * p[0] + A[m, 1] * p[1] + A[m, 2] * p[2] + A[m, 3]
+    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+    if not (np.isfinite(norm) and norm > 0.0 and np.isfinite(p[0] + p[1] + p[2])):
+        return
+    for m in range(3):
+        point[m] = p[m]
+        normal[m] = n[m] / norm
+
+
+@_jit
 def _grown(iv, owner, niv):
     """The all-pairs interval list (``iv`` (n, 2) and ``owner`` (n,), the first ``niv`` rows filled) with room for
     more: copies twice as long, element by element (see bernstein's _jit)."""
@@ -755,9 +807,9 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
                     for m in range(3):
                         points[k, m] = point[m]
                         normals[k, m] = normal[m]
-                else:  # no touch point at a time that is not known
-                    points[k] = 0.0
-                    normals[k] = 0.0
+                else:  # the first contact is only bracketed: where they nearly touch at the bracket's start
+                    _estimated_touch(radii[i], p0[i], q0[i], p1[i], q1_raw[i], radii[j], p0[j], q0[j], p1[j],
+                                     q1_raw[j], t, points[k], normals[k])
                 if t < best or (t == best and k < best_k):
                     best, best_k = t, k
         if all_pairs:
@@ -882,10 +934,11 @@ class PairContact:
 
     ``certainty`` is "certified", or "uncertain" when the exact solver hit one
     of its limits on this pair: then ``bracket`` = (lo, hi) holds every
-    possible first contact, ``time`` is lo, and point and normal are None
-    unless the first contact itself was found (lo == hi; with ``all_pairs``
-    only, its later ``intervals`` are then incomplete).  An uncertain pair is a
-    possible contact at lo, never "no contact".
+    possible first contact, ``time`` is lo, and point and normal are an
+    estimate, where the two nearly touch at lo (the touching point itself when
+    the first contact was found: lo == hi; with ``all_pairs`` only, its later
+    ``intervals`` are then incomplete), None only where no estimate could be
+    formed.  An uncertain pair is a possible contact at lo, never "no contact".
     """
 
     pair: int

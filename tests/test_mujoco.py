@@ -454,7 +454,9 @@ def test_monitor_reports_uncertain_scene_answers(limited_scene):
     m, d = _throw(0.0011)  # contact at 0.55 of the first step; the stand-in solver says "somewhere in [0.3, 0.8]"
     monitor = CCDMonitor(m, d, fit_model(m), mode="ellipsoids")
     c = monitor.step()
-    assert (c.certainty, c.point, c.normal, c.status_at_start) == ("uncertain", None, None, "separate")
+    assert (c.certainty, c.status_at_start) == ("uncertain", "separate")
+    # the point is an estimate: where the two bodies, flying at each other along x, nearly touch at 0.3
+    assert c.point is not None and abs(c.point[1]) < 1e-9 and abs(abs(c.normal[0]) - 1.0) < 1e-9
     assert c.fraction == 0.3 and c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-15)
     assert c.time == c.bracket[0]
     assert monitor.last_report.pairs_uncertain == 1 and monitor.last_report.first is c
@@ -465,7 +467,7 @@ def test_monitor_reports_uncertain_scene_answers(limited_scene):
     mujoco.mj_step(m, d)
     check.end_may_touch(d)
     c = check.first((0.0, float(d.time)))
-    assert (c.certainty, c.point, c.fraction) == ("uncertain", None, 0.3)
+    assert (c.certainty, c.fraction) == ("uncertain", 0.3) and c.point is not None
     assert c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-15)
 
 

@@ -314,14 +314,15 @@ def test_python_kernel_equals_the_compiled_one(python_kernel):
 
 def test_uncertain_first_contact_is_a_possible_contact_at_its_bracket(python_kernel):
     """See three_pairs: pair 1 (which touches at 0.25) hits a limit, bracket [0.2, 0.3]: it is the first
-    contact at 0.2, uncertain, without point; counted as uncertain, not colliding; pair 2 is pruned by it."""
+    contact at 0.2, uncertain, with the estimate of its point (where the spheres nearly touch at 0.2: between
+    their surfaces at x = 10.5 and 10.7); counted as uncertain, not colliding; pair 2 is pruned by it."""
     python_kernel({10.0: _limit(0.2, 0.3)})
     scene, p0, p1 = three_pairs()
     res = scene.step(p0, p1, new_contacts_only=True)
     assert res.certainty == "uncertain"
     first = res.first
     assert (first.pair, first.time, first.certainty, first.bracket) == (1, 0.2, "uncertain", (0.2, 0.3))
-    assert first.point is None and first.normal is None
+    _assert_estimate_between_the_spheres(first)
     c = res.counters
     # colliding: only the pair overlapping at the start (counted, not reported, with new_contacts_only)
     assert (c.solved_exactly, c.uncertain, c.colliding, c.pruned, c.overlapping_t0) == (1, 1, 1, 1, 1)
@@ -332,14 +333,22 @@ def test_uncertain_first_contact_is_a_possible_contact_at_its_bracket(python_ker
 
 def test_uncertain_first_contact_keeps_its_bracket(python_kernel):
     """Pair 1's solver estimates its first contact at 0.25 but proves it only within [0.2, 0.3] (a first-only
-    answer that hit a limit): the scene reports the bracket, not the estimate, and no touch point."""
+    answer that hit a limit): the scene reports the bracket, not the estimate, and the point estimated at the
+    bracket's start."""
     python_kernel({10.0: _limit(0.2, 0.3, intervals=[(0.25, 0.25)], touch=True)})
     scene, p0, p1 = three_pairs()
     res = scene.step(p0, p1, new_contacts_only=True)
     first = res.first
     assert (first.pair, first.time, first.certainty, first.bracket) == (1, 0.2, "uncertain", (0.2, 0.3))
-    assert first.point is None and first.normal is None
+    _assert_estimate_between_the_spheres(first)
     assert (res.counters.uncertain, res.counters.colliding) == (1, 1)  # colliding: the overlap at the start only
+
+
+def _assert_estimate_between_the_spheres(contact, lo=10.5, hi=10.7):
+    """An uncertain contact's estimated point: where two spheres of three_pairs nearly touch at the bracket's
+    start, between their surfaces at x = lo and hi (pair 1 at t = 0.2: about x = 10 and 11.2), along +x."""
+    assert contact.point is not None and lo <= contact.point[0] <= hi and np.allclose(contact.point[1:], 0.0)
+    np.testing.assert_allclose(contact.normal, [1.0, 0.0, 0.0], atol=1e-12)
 
 
 def _two_pose_poses(case):
@@ -387,7 +396,8 @@ def test_uncertain_pairs_with_all_pairs(python_kernel):
     assert res.certainty == "uncertain"
     by_pair = {c.pair: c for c in res.contacts}
     assert sorted(by_pair) == [0, 1, 2]
-    assert (by_pair[2].time, by_pair[2].bracket, by_pair[2].point) == (0.8, (0.8, 0.95), None)
+    assert (by_pair[2].time, by_pair[2].bracket) == (0.8, (0.8, 0.95))
+    _assert_estimate_between_the_spheres(by_pair[2], 20.5, 20.7)  # about x = 20 and 21.2 at t = 0.8
     assert (by_pair[1].time, by_pair[1].bracket, by_pair[1].intervals) == (0.25, (0.25, 0.25), ((0.25, 0.5),))
     assert np.allclose(by_pair[1].normal, [1, 0, 0])  # the first contact itself is known
     assert (by_pair[0].time, by_pair[0].bracket, by_pair[0].point) == (0.0, (0.0, 0.0), None)
@@ -418,7 +428,7 @@ def test_run_flags_uncertain_frames(python_kernel):
     scene, p0, p1 = three_pairs()
     run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True)
     assert run.uncertain.dtype == np.int8 and run.uncertain.tolist() == [1, 0]
-    assert run.time[0] == 0.2 and run.pair[0] == 1 and not run.point[0].any()
+    assert run.time[0] == 0.2 and run.pair[0] == 1 and 10.5 <= run.point[0][0] <= 10.7  # the estimate
     # colliding: only the pair overlapping at the start; the uncertain one is counted apart
     assert run.counters.shape == (2, 10) and run.counters[0, 8] == 1 and run.counters[0, 6] == 1
 
@@ -482,7 +492,8 @@ def test_uncertain_first_contact_equals_step_first(python_kernel):
     python_kernel({10.0: _limit(0.2, 0.3)})
     scene, p0, p1 = three_pairs()
     fc = scene.first_contact(p0, p1, new_contacts_only=True)
-    assert fc == (1, 0.2, None, None, (0.2, 0.3))
+    assert (fc.pair, fc.time, fc.bracket) == (1, 0.2, (0.2, 0.3))
+    _assert_estimate_between_the_spheres(fc)
     assert _same_first(fc, scene.step(p0, p1, new_contacts_only=True).first)
 
 

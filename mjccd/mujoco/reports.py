@@ -42,7 +42,8 @@ class StepContact:
         body_ids: the two MuJoCo body ids.
         ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`; for a contact with a
             plane, the ellipsoid's index and -1.
-        point: (3,) world contact point, None when the pair was not separate at the step start.
+        point: (3,) world contact point, None when the pair was not separate at the step start; for an
+            uncertain contact, an estimate: where the two nearly touch at the bracket's start.
         normal: (3,) unit world normal pointing out of ``bodies[0]``, None likewise.
         status_at_start: "separate", "touching" or "overlapping" at the step start.
         certainty: "certified", or "uncertain" when the exact solver hit one of its limits on

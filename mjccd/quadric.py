@@ -933,21 +933,36 @@ def touching_point(A, B, u):
     ``u`` is the double root of det((1-u)A + uB) in (0, 1); the contact point
     spans the kernel of (1-u)A + uB (the thesis' Theorem 4.4 in u form).
     """
+    p = np.full(3, np.nan)
+    n = np.full(3, np.nan)
+    pencil_point_into(A, B, u, p, n)
+    return p, n
+
+
+@_jit
+def pencil_point_into(A, B, u, p, n):
+    """p, n = the point spanning the kernel of (1-u)A + uB and the unit normal of A there (outward); False,
+    p and n left as they were, where that point lies at infinity or A's normal vanishes there."""
     M = np.empty((4, 4))
     for i in range(4):
         for j in range(4):
             M[i, j] = (1.0 - u) * A[i, j] + u * B[i, j]
     X = null_vector(M)
-    p = np.empty(3)
-    n = np.empty(3)
+    if not (np.isfinite(X[3]) and X[3] != 0.0):
+        return False
+    q = np.empty(3)
+    g = np.empty(3)
     for i in range(3):
-        p[i] = X[i] / X[3]
+        q[i] = X[i] / X[3]
     for i in range(3):
-        n[i] = A[i, 0] * p[0] + A[i, 1] * p[1] + A[i, 2] * p[2] + A[i, 3]
-    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        g[i] = A[i, 0] * q[0] + A[i, 1] * q[1] + A[i, 2] * q[2] + A[i, 3]
+    norm = np.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    if not (np.isfinite(norm) and norm > 0.0 and np.isfinite(q[0] + q[1] + q[2])):
+        return False
     for i in range(3):
-        n[i] /= norm
-    return p, n
+        p[i] = q[i]
+        n[i] = g[i] / norm
+    return True
 
 
 @_jit

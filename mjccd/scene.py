@@ -56,8 +56,8 @@ from mjccd import filters as fl
 from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
 from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, plane_pair_kernel, plane_rows
-from mjccd.quadric import (null_vector, pencil_quartic, quadric_matrix, quartic_max, separating_plane_matrices,
-                            static_status_pose)
+from mjccd.quadric import (pencil_point_into, pencil_quartic, quadric_matrix, quartic_max,
+                            separating_plane_matrices, static_status_pose)
 from mjccd.sorting import sort_by_key
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
@@ -499,6 +499,19 @@ def _plane_solve(affine, radii, p0, q0, p1, q1_raw, planes, plane_pairs, npairs,
     return status0, runs, certified, lo, hi, nruns
 
 
+@_inline
+def _in_contact_at_start(k, times, points, normals, best, best_k):
+    """Pair k is in contact at t = 0: its time 0, no point or normal (the arrays carry over between frames); the
+    new (best, best_k), the first such pair kept."""
+    times[k] = 0.0
+    for m in range(3):
+        points[k, m] = 0.0
+        normals[k, m] = 0.0
+    if best > 0.0:
+        return 0.0, k
+    return best, best_k
+
+
 @_jit
 def _estimated_touch(ri, p0i, q0i, p1i, q1i, rj, p0j, q0j, p1j, q1j, t, point, normal):
     """An estimate of where two ellipsoids touch near time t (an uncertain answer's bracket start), into point
@@ -529,25 +542,7 @@ def _estimated_touch(ri, p0i, q0i, p1i, q1i, rj, p0j, q0j, p1j, q1j, t, point, n
     B = quadric_matrix(rj, cj, qj)
     g, _ = pencil_quartic(A, B)
     _, u = quartic_max(g)
-    M = np.empty((4, 4))
-    for a in range(4):
-        for b in range(4):
-            M[a, b] = (1.0 - u) * A[a, b] + u * B[a, b]
-    X = null_vector(M)
-    if not (np.isfinite(X[3]) and X[3] != 0.0):
-        return
-    p = np.empty(3)
-    n = np.empty(3)
-    for m in range(3):
-        p[m] = X[m] / X[3]
-    for m in range(3):
-        n[m] = A[m, 0] * p[0] + A[m, 1] * p[1] + A[m, 2] * p[2] + A[m, 3]
-    norm = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-    if not (np.isfinite(norm) and norm > 0.0 and np.isfinite(p[0] + p[1] + p[2])):
-        return
-    for m in range(3):
-        point[m] = p[m]
-        normal[m] = n[m] / norm
+    pencil_point_into(A, B, u, point, normal)
 
 
 @_jit
@@ -642,12 +637,7 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
             counters[4] += 1
             counters[6] += 1
         elif code == OVERLAP_T0:
-            times[k] = 0.0
-            for m in range(3):  # no point or normal at t = 0 (the arrays carry over between frames)
-                points[k, m] = 0.0
-                normals[k, m] = 0.0
-            if best > 0.0:
-                best, best_k = 0.0, k
+            best, best_k = _in_contact_at_start(k, times, points, normals, best, best_k)
             cand[ncand] = k
             ncand += 1
         elif code == EXACT_FREE:
@@ -677,12 +667,7 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
             counters[4] += 1
             counters[6] += 1
         elif code == OVERLAP_T0:
-            times[k] = 0.0
-            for m in range(3):
-                points[k, m] = 0.0
-                normals[k, m] = 0.0
-            if best > 0.0:
-                best, best_k = 0.0, k
+            best, best_k = _in_contact_at_start(k, times, points, normals, best, best_k)
             cand[ncand] = k
             ncand += 1
         elif code == EXACT_FREE:
@@ -726,12 +711,7 @@ def step_kernel(ws, p0, q0, p1, q1_raw, iv, owner, all_pairs, new_only, timing):
                     counters[4] += 1
                     counters[6] += 1
                     if not new_only:
-                        times[k] = 0.0
-                        for m in range(3):
-                            points[k, m] = 0.0
-                            normals[k, m] = 0.0
-                        if best > 0.0:
-                            best, best_k = 0.0, k
+                        best, best_k = _in_contact_at_start(k, times, points, normals, best, best_k)
                 elif nruns > 0 or not certified:
                     # the first contact is known when its run is proven with a narrow entry bracket
                     known = nruns > 0 and runs[0, 6] > 0.0 and max(runs[0, 0] - runs[0, 2],

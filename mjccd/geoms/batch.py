@@ -302,27 +302,25 @@ def below_plane(kinds, sizes, Q0, g, p):
     start by more than a relative MARGIN: its lowest point along the plane's normal n, ``n . (c - o) - h``
     with h the shape's support along -n, computed from the pose as given.  A body resting on a floor under
     MuJoCo's soft contacts sinks in by far more, so its pair needs no solve to be overlapping."""
-    n = _rotate(Q0[p, 3:], np.array([0.0, 0.0, 1.0]))
-    q = Q0[g, 3:]
-    height = n[0] * (Q0[g, 0] - Q0[p, 0]) + n[1] * (Q0[g, 1] - Q0[p, 1]) + n[2] * (Q0[g, 2] - Q0[p, 2])
-    kind, size = kinds[g], sizes[g]
+    w, x, y, z = Q0[p, 3], Q0[p, 4], Q0[p, 5], Q0[p, 6]  # n: the third column of the plane's rotation
+    n0, n1, n2 = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), w * w - x * x - y * y + z * z
+    height = n0 * (Q0[g, 0] - Q0[p, 0]) + n1 * (Q0[g, 1] - Q0[p, 1]) + n2 * (Q0[g, 2] - Q0[p, 2])
     # the plane's normal in the geom's frame: the columns of its rotation dotted with n
-    m = np.empty(3)
-    for i in range(3):
-        e = np.zeros(3)
-        e[i] = 1.0
-        a = _rotate(q, e)
-        m[i] = abs(a[0] * n[0] + a[1] * n[1] + a[2] * n[2])
+    w, x, y, z = Q0[g, 3], Q0[g, 4], Q0[g, 5], Q0[g, 6]
+    m0 = abs((w * w + x * x - y * y - z * z) * n0 + 2.0 * (x * y + w * z) * n1 + 2.0 * (x * z - w * y) * n2)
+    m1 = abs(2.0 * (x * y - w * z) * n0 + (w * w - x * x + y * y - z * z) * n1 + 2.0 * (y * z + w * x) * n2)
+    m2 = abs(2.0 * (x * z + w * y) * n0 + 2.0 * (y * z - w * x) * n1 + (w * w - x * x - y * y + z * z) * n2)
+    kind, size = kinds[g], sizes[g]
     if kind == sy.SPHERE:
         h = size[0]
     elif kind == sy.CAPSULE:
-        h = size[0] + size[1] * m[2]
+        h = size[0] + size[1] * m2
     elif kind == sy.CYLINDER:
-        h = size[1] * m[2] + size[0] * math.sqrt(max(0.0, 1.0 - m[2] * m[2]))
+        h = size[1] * m2 + size[0] * math.sqrt(max(0.0, 1.0 - m2 * m2))
     elif kind == sy.BOX:
-        h = size[0] * m[0] + size[1] * m[1] + size[2] * m[2]
+        h = size[0] * m0 + size[1] * m1 + size[2] * m2
     elif kind == sy.ELLIPSOID:
-        h = math.sqrt((size[0] * m[0]) ** 2 + (size[1] * m[1]) ** 2 + (size[2] * m[2]) ** 2)
+        h = math.sqrt((size[0] * m0) ** 2 + (size[1] * m1) ** 2 + (size[2] * m2) ** 2)
     else:
         return False
     scale = abs(Q0[g, 0]) + abs(Q0[g, 1]) + abs(Q0[g, 2]) + abs(Q0[p, 0]) + abs(Q0[p, 1]) + abs(Q0[p, 2]) + h

@@ -559,13 +559,20 @@ def planar_window(MA, DA, ax_a, MB, DB, ax_b, chart, s0, s1, W, I, CON, SYS, SYS
 _local = threading.local()
 
 
-def workspaces():
-    """This thread's double and double-double workspaces, system store and kinds (made on first use)."""
-    ws = getattr(_local, "workspaces", None)
+def thread_workspaces(local, slots):
+    """The calling thread's double and double-double workspaces of ``slots`` polynomials, system store and kinds,
+    kept in the ``threading.local`` ``local`` (made on first use): the last arguments of the planar and spatial
+    kernels."""
+    ws = getattr(local, "workspaces", None)
     if ws is None:
-        ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True),
-                                  *sy.new_store(16, 32), np.zeros(16, dtype=np.int64))
+        ws = local.workspaces = (*P.workspace(slots, P.MAX_DEGREE), *P.workspace(slots, P.MAX_DEGREE, True),
+                                 *sy.new_store(16, 32), np.zeros(16, dtype=np.int64))
     return ws
+
+
+def workspaces():
+    """This thread's workspaces of the planar kernels (:func:`thread_workspaces`)."""
+    return thread_workspaces(_local, SLOTS)
 
 
 def _deg(p):

@@ -83,7 +83,7 @@ def motion_rows(motion, field="motion"):
     raise InputTypeError(f"{field}: expected a motion (Static, Rigid, Chain), got {type(motion).__name__}")
 
 
-def _shifted(rows, origin):
+def shifted_rows(rows, origin):
     """The rows of the same motion seen from ``origin`` (the root's position shifted; exact for nearby bodies)."""
     if rows[0, 0] == fr.POSE:
         out = rows.copy()
@@ -182,7 +182,7 @@ def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
         raise InputError("b.shape: two planes are not a pair MuJoCo collides")
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
     out = np.empty(kn.OUT)
-    kn.pair_kernel(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), float(t_max), *workspaces(), out)
+    kn.pair_kernel(ka, sa, shifted_rows(ra, origin), kb, sb, shifted_rows(rb, origin), float(t_max), *workspaces(), out)
     if out[kn.FAILED] == kn.OVERFLOW:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace (a chain too deep for its degree limit {P.MAX_DEGREE})")
@@ -268,7 +268,7 @@ def geom_collision_intervals(shape_a, motion_a, shape_b, motion_b):
         raise InputError("b.shape: two planes are not a pair MuJoCo collides")
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
     out = np.empty((kn.MAX_RUNS, 7))
-    count, certified, _, code = kn.pair_runs(ka, sa, _shifted(ra, origin), kb, sb, _shifted(rb, origin), 1.0,
+    count, certified, _, code = kn.pair_runs(ka, sa, shifted_rows(ra, origin), kb, sb, shifted_rows(rb, origin), 1.0,
                                              *workspaces(), out)
     if code < 0:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "

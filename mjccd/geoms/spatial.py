@@ -76,7 +76,7 @@ from mjccd.geoms import planar as pl
 from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
 from mjccd.geoms.poly import _jit
-from mjccd.geoms.solve import motion_rows
+from mjccd.geoms.solve import motion_rows, shifted_rows
 
 TIME_TOL = kn.TIME_TOL
 STATUS_NAMES = pl.STATUS_NAMES
@@ -326,24 +326,7 @@ _local = threading.local()
 
 
 def _workspaces():
-    ws = getattr(_local, "workspaces", None)
-    if ws is None:
-        ws = _local.workspaces = (*P.workspace(SLOTS, P.MAX_DEGREE), *P.workspace(SLOTS, P.MAX_DEGREE, True),
-                                  *sy.new_store(16, 32), np.zeros(16, dtype=np.int64))
-    return ws
-
-
-def _shifted(rows, origin):
-    """The rows of the same motion seen from ``origin`` (as mjccd.geoms.solve does)."""
-    if rows[0, 0] == fr.POSE:
-        out = rows.copy()
-        out[0, 1:4] -= origin
-        out[0, 8:11] -= origin
-        return out
-    lead = np.zeros(fr.ELEMENT_FIELDS)
-    lead[0] = fr.POSE
-    lead[1:4], lead[4:8], lead[8:11], lead[11:15] = -origin, (1.0, 0.0, 0.0, 0.0), -origin, (1.0, 0.0, 0.0, 0.0)
-    return np.vstack([lead[None, :], rows])
+    return pl.thread_workspaces(_local, SLOTS)
 
 
 def _chord(R, c, a, b, n_o, c_o):
@@ -493,7 +476,7 @@ def disk_first_contact(disk_a, motion_a, disk_b, motion_b, *, t_max=1.0):
     rows_b = motion_rows(motion_b, "motion_b")
     t_max = _validate.time_bound(t_max, "t_max")
     origin = rows_a[0, 1:4].copy()
-    rows_a, rows_b = _shifted(rows_a, origin), _shifted(rows_b, origin)
+    rows_a, rows_b = shifted_rows(rows_a, origin), shifted_rows(rows_b, origin)
     fa, fb = exact_frame(rows_a), exact_frame(rows_b)
     rel = _relative(fa, fb)
     L, v, _ = rel

@@ -1,6 +1,7 @@
 """Peak memory and speed of ``mjccd replay`` on long boxing trajectories.
 
-Usage: python benchmarks/replay_memory.py [--frames 100000 1000000] [--compressed] [--old REV] [--keep DIR]
+Usage: python benchmarks/replay_memory.py [--frames 100000 1000000] [--compressed] [--mode MODE] [--old REV]
+[--keep DIR]
 
 The trajectory is the bundled ``data/boxing_traj.npz`` (1,199 frames of two CMU boxers)
 played forwards, then backwards, again and again (no jump between the copies), cut to
@@ -9,7 +10,7 @@ members, like ``numpy.savez``; ``--compressed``: deflated, like ``numpy.savez_co
 the benchmark itself stays small however long the trajectory is.
 
 Each replay runs in a fresh process, ``python -m mjccd replay models/boxing.xml TRAJ --no-render
---rows 0 --out DIR`` (rigid motion), after one short replay that compiles (or loads from numba's
+--rows 0 --out DIR`` (rigid motion; ``--mode``: replay's ``--mode``, geoms by default), after one short replay that compiles (or loads from numba's
 cache) the kernels.  Its peak resident set is that child's ``ru_maxrss`` (``os.wait4``); wall
 time covers the whole process (start, reading and checking the trajectory, the replay, the
 reports); ``frames/s`` is the replay's own (kinematics and CCD, as its summary prints it).
@@ -62,12 +63,12 @@ def write_tiled(path, frames, compressed=False, source=TRAJ):
     return path
 
 
-def run_replay(traj, out, package_root):
+def run_replay(traj, out, package_root, mode=None):
     """Replay ``traj`` in a child process; (peak RSS in MB, wall seconds, frames/s, first contacts, stdout)."""
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(package_root), os.environ.get("PYTHONPATH"))
                                                      if p))
     command = [sys.executable, "-m", "mjccd", "replay", str(MODEL), str(traj), "--no-render", "--rows", "0",
-               "--out", str(out), "--force"]
+               "--out", str(out), "--force", *(["--mode", mode] if mode else [])]
     start = time.perf_counter()
     with tempfile.TemporaryFile("w+") as log:
         proc = subprocess.Popen(command, stdout=log, stderr=subprocess.DEVNULL, env=env, cwd=package_root)
@@ -84,15 +85,15 @@ def run_replay(traj, out, package_root):
             int(contacts.group(1)) if contacts else -1, text)
 
 
-def measure(label, package_root, frames_list, folder, compressed):
+def measure(label, package_root, frames_list, folder, compressed, mode=None):
     """Rows of the table for one mjccd package (a warm-up replay first)."""
     warm = write_tiled(folder / "warm.npz", 300, compressed)
-    run_replay(warm, folder / "out", package_root)
+    run_replay(warm, folder / "out", package_root, mode)
     rows = []
     for frames in frames_list:
         traj = write_tiled(folder / f"tiled_{frames}.npz", frames, compressed)
         size_mb = traj.stat().st_size / 2 ** 20
-        rss, wall, rate, contacts, _ = run_replay(traj, folder / "out", package_root)
+        rss, wall, rate, contacts, _ = run_replay(traj, folder / "out", package_root, mode)
         traj.unlink()
         rows.append((label, "deflated" if compressed else "stored", frames, size_mb, rss, wall, rate, frames / wall,
                      contacts))
@@ -127,6 +128,7 @@ def main(argv=None):
     parser.add_argument("--frames", type=int, nargs="+", default=[100_000, 1_000_000],
                         help="trajectory lengths to replay (default 100000 1000000)")
     parser.add_argument("--compressed", action="store_true", help="write deflated members (savez_compressed)")
+    parser.add_argument("--mode", choices=("geoms", "ellipsoids"), help="replay's --mode (default: its default)")
     parser.add_argument("--old", metavar="REV", help="also measure the mjccd package of this git revision")
     parser.add_argument("--keep", metavar="DIR", help="work in this folder (kept) instead of a temporary one")
     args = parser.parse_args(argv)
@@ -138,8 +140,8 @@ def main(argv=None):
         rows = []
         if args.old:
             old_root = extract(args.old, folder / "old")
-            rows += measure(f"`{args.old}`", old_root, args.frames, folder, args.compressed)
-        rows += measure("this tree", ROOT, args.frames, folder, args.compressed)
+            rows += measure(f"`{args.old}`", old_root, args.frames, folder, args.compressed, args.mode)
+        rows += measure("this tree", ROOT, args.frames, folder, args.compressed, args.mode)
     print()
     print(markdown(rows))
     current = [r for r in rows if r[0] == "this tree" and r[2] >= 1_000_000]

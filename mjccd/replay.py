@@ -19,11 +19,11 @@ Inputs are checked before any work: a bad model or trajectory stops with a
 :class:`ReplayError` naming the file and the problem.  The frames run in
 chunks; Ctrl-C is acted on between chunks, never inside compiled code.
 
-Memory does not grow with the number of frames: an .npz trajectory is read
-:data:`READ_FRAMES` frames at a time (:class:`Trajectory`: one pass that
-checks every frame, then one that replays them), and the replay keeps only
-what it reports (the first contacts, the runs of frames each pair spends in
-contact, the counters).
+Memory grows neither with the number of frames nor with the number of contacts: an .npz
+trajectory is read :data:`READ_FRAMES` frames at a time (:class:`Trajectory`: one pass that
+checks every frame, then one that replays them), and what the replay reports (the first
+contacts, the runs of frames each pair spends in contact) goes to temporary files as it is
+found (:mod:`mjccd.spool`), from which the reports are written piece by piece.
 
 Outputs: a table of first contacts, ``contacts.json``, ``contacts.csv``,
 ``timeline.png`` and, where an OpenGL backend works, a few rendered frames,
@@ -47,6 +47,7 @@ from functools import cached_property
 import numpy as np
 
 from mjccd import interrupts, npz_stream
+from mjccd.spool import ArraySpool, JsonSpool
 from mjccd.errors import InputError, MjccdError, OutputError
 from mjccd.files import OutputFolder
 from mjccd.mujoco import adapter
@@ -74,6 +75,9 @@ RADIUS_RANGE = (1e-6, 1e6)   # metres; semi-axes outside it overflow or lose all
 COORDINATE_LIMIT = 1e6   # largest |qpos| value and ellipsoid centre coordinate (metres), for the same reason
 TIME_LIMIT = 1e12        # largest |time| in seconds
 MIN_QUATERNION_NORM = 1e-12  # shorter joint quaternions are refused (MuJoCo would make them the identity)
+# one run of frame intervals a pair spends in contact: intervals first to last, from time start to time end
+RUN_DTYPE = np.dtype([("pair", np.int64), ("first", np.int64), ("last", np.int64), ("start", np.float64),
+                      ("end", np.float64)])
 
 
 class ReplayError(InputError):
@@ -596,14 +600,15 @@ class ReplayResult:
     ``ellipsoids`` (:class:`~mjccd.mujoco.EllipsoidSet`) are the model's bounding ellipsoids,
     ``pairs`` (P, 2) the pairs checked, ``plane_pairs`` (Q, 2) the (ellipsoid, plane geom) pairs checked and
     ``labels`` a short name per ellipsoid.  ``contacts`` are the first contacts (dicts, as in
-    ``contacts.json``).  ``overlaps`` maps a pair (an index into ``pairs``, or P + a row of
-    ``plane_pairs``; :meth:`names` gives its names) to its runs of frame intervals in contact (or
-    possibly in contact: an uncertain result), each ``(first, last, time[first],
-    time[last + 1])``, in order; ``frames_in_contact`` counts the frame intervals with any pair
-    in contact; ``time_range`` is the times of the first and the last frame.
+    ``contacts.json``, in a :class:`~mjccd.spool.JsonSpool`: a list kept on disk).  ``runs`` are the
+    runs of frame intervals a pair (an index into ``pairs``, or P + a row of ``plane_pairs``;
+    :meth:`names` gives its names) spends in contact (or possibly in contact: an uncertain result),
+    as :data:`RUN_DTYPE` records on disk; :attr:`overlaps` gives them by pair.
+    ``frames_in_contact`` counts the frame intervals with any pair in contact; ``time_range`` is
+    the times of the first and the last frame.
 
     Nothing per frame is kept: ``time`` (T,) and ``in_contact`` ((T - 1, P + Q) flags, made from
-    ``overlaps``) are built on first use and kept from then on; ``time`` is read again from the
+    the runs) are built on first use and kept from then on; ``time`` is read again from the
     trajectory file.
     """
 
@@ -614,8 +619,8 @@ class ReplayResult:
     ellipsoids: EllipsoidSet
     pairs: np.ndarray
     labels: list
-    contacts: list = field(default_factory=list)
-    overlaps: dict = field(default_factory=dict)
+    contacts: JsonSpool = field(default_factory=JsonSpool)
+    runs: ArraySpool = field(default_factory=lambda: ArraySpool(RUN_DTYPE), repr=False, compare=False)
     frames_in_contact: int = 0
     time_range: tuple = (0.0, 0.0)
     counters: dict = field(default_factory=dict)
@@ -660,6 +665,26 @@ class ReplayResult:
         geom, body = self.plane_names[g]
         return [ell.geoms[i], geom], [ell.bodies[i], body], [self.labels[i], geom]
 
+    def pair_runs(self):
+        """``(pair, runs)`` of each pair ever in contact, in pair order; ``runs``: its :data:`RUN_DTYPE` records in
+        time order."""
+        runs = self.runs.array()
+        runs = runs[np.argsort(runs["pair"], kind="stable")]
+        cuts = np.flatnonzero(np.diff(runs["pair"])) + 1
+        for group in np.split(runs, cuts) if len(runs) else ():
+            yield int(group["pair"][0]), group
+
+    @property
+    def overlaps(self):
+        """Pair -> its runs of frame intervals in contact, each ``(first, last, time[first], time[last + 1])``, in
+        order (made from :attr:`runs` on each use)."""
+        return {p: [(a, b, t0, t1) for _, a, b, t0, t1 in group.tolist()] for p, group in self.pair_runs()}
+
+    @property
+    def pairs_in_contact(self):
+        """How many pairs were ever in contact."""
+        return len(np.unique(self.runs.array()["pair"]))
+
     @cached_property
     def time(self):
         """The (T,) frame times, read from the trajectory on first use."""
@@ -669,9 +694,8 @@ class ReplayResult:
     def in_contact(self):
         """(T - 1, P + Q) flags: pair p in contact during frame interval k (made on first use)."""
         flags = np.zeros((self.n_frames - 1, self.n_checked), dtype=bool)
-        for p, runs in self.overlaps.items():
-            for first, last, _, _ in runs:
-                flags[first:last + 1, p] = True
+        for p, first, last, _, _ in self.runs.array().tolist():
+            flags[first:last + 1, p] = True
         return flags
 
 
@@ -791,7 +815,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
     counters = dict.fromkeys(COUNTER_NAMES, 0)
     n = trajectory.n_frames - 1
-    overlaps = _Overlaps(result.n_checked)
+    overlaps = _Overlaps(result.n_checked, result.runs)
     t_first = t_last = None
     t_kin = t_ccd = 0.0
     bar = None
@@ -833,7 +857,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
         if bar is not None:
             bar.close()
     overlaps.close(n, t_last)
-    result.overlaps, result.frames_in_contact = overlaps.runs, overlaps.frames
+    result.frames_in_contact = overlaps.frames
     result.time_range = (float(t_first), float(t_last))
     result.counters = {name: int(v) for name, v in counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
@@ -874,12 +898,13 @@ def _windows(trajectory, size):
 
 
 class _Overlaps:
-    """The runs of frame intervals each pair spends in contact, from (intervals, pairs) flags a chunk at a time."""
+    """The runs of frame intervals each pair spends in contact, from (intervals, pairs) flags a chunk at a time;
+    each run goes to ``runs`` (a :data:`RUN_DTYPE` :class:`~mjccd.spool.ArraySpool`) when it ends."""
 
-    def __init__(self, pairs):
+    def __init__(self, pairs, runs):
         self.start = np.full(pairs, -1, dtype=np.int64)  # first interval of each pair's open run (-1: none)
         self.start_time = np.zeros(pairs)
-        self.runs = {}     # pair -> [(first, last, time[first], time[last + 1])]
+        self.runs = runs
         self.frames = 0    # intervals with any pair in contact
 
     def add(self, first, flags, time):
@@ -892,15 +917,13 @@ class _Overlaps:
             if flags[r, p]:
                 self.start[p], self.start_time[p] = first + r, time[r]
             else:
-                self.runs.setdefault(p, []).append((int(self.start[p]), first + r - 1, float(self.start_time[p]),
-                                                    float(time[r])))
+                self.runs.append((p, int(self.start[p]), first + r - 1, float(self.start_time[p]), float(time[r])))
                 self.start[p] = -1
 
     def close(self, intervals, last_time):
         """End the open runs after the last interval (``intervals`` of them; ``last_time``: the last frame's)."""
         for p in np.nonzero(self.start >= 0)[0].tolist():
-            self.runs.setdefault(p, []).append((int(self.start[p]), intervals - 1, float(self.start_time[p]),
-                                                float(last_time)))
+            self.runs.append((p, int(self.start[p]), intervals - 1, float(self.start_time[p]), float(last_time)))
             self.start[p] = -1
 
 
@@ -1023,7 +1046,7 @@ def summary(result):
     c = result.counters
     t = result.timing
     frames_hit = result.frames_in_contact
-    pairs_hit = len(result.overlaps)
+    pairs_hit = result.pairs_in_contact
     planes = f", {len(result.plane_pairs)} ellipsoid-plane pairs" if len(result.plane_pairs) else ""
     what = f"{len(result.parts)} geoms" if result.mode == "geoms" else f"{len(result.ellipsoids)} ellipsoids"
     lines = [
@@ -1039,17 +1062,35 @@ def summary(result):
 
 
 def _overlap_spans(result):
-    """The ``in_contact`` entries of contacts.json: each pair ever in contact, in pair order, and its frame runs."""
-    spans = []
-    for p in sorted(result.overlaps):
+    """The ``in_contact`` entries of contacts.json, one at a time: each pair ever in contact, in pair order, and
+    its frame runs."""
+    for p, runs in result.pair_runs():
         parts, bodies, labels = result.names(p)
-        spans.append({result.part_key: parts, "bodies": bodies, "labels": labels,
-                      "frames": [[a, b] for a, b, _, _ in result.overlaps[p]]})
-    return spans
+        yield {result.part_key: parts, "bodies": bodies, "labels": labels,
+               "frames": ([a, b] for a, b in zip(runs["first"].tolist(), runs["last"].tolist()))}
+
+
+def write_json(fh, value, depth=0):
+    """Write ``value`` as ``json.dump(value, fh, indent=1)`` would, but with any iterable (a generator, a
+    :class:`~mjccd.spool.JsonSpool`) written as a list item by item, so that it is never held whole in memory."""
+    if isinstance(value, dict):
+        entries, opening, closing = ((json.dumps(str(k)) + ": ", v) for k, v in value.items()), "{", "}"
+    elif isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+        fh.write(json.dumps(value))
+        return
+    else:
+        entries, opening, closing = (("", v) for v in value), "[", "]"
+    inner, empty = "\n" + " " * (depth + 1), True
+    for prefix, item in entries:
+        fh.write((opening if empty else ",") + inner + prefix)
+        write_json(fh, item, depth + 1)
+        empty = False
+    fh.write(opening + closing if empty else "\n" + " " * depth + closing)
 
 
 def write_reports(result, folder):
-    """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`)."""
+    """contacts.json, contacts.csv and timeline.png in ``folder`` (an :class:`OutputFolder`), streamed from the
+    result's spools."""
     key = result.part_key
     doc = {"version": 1, "model": result.model, "trajectory": result.trajectory, "motion": result.motion,
            "mode": result.mode, "frames": result.n_frames, key: result.parts, "pairs": len(result.pairs),
@@ -1057,7 +1098,7 @@ def write_reports(result, folder):
            "first_contacts": result.contacts, "in_contact": _overlap_spans(result),
            "counters": result.counters, "timing": result.timing}
     with folder.open("contacts.json", "w", encoding="utf-8") as fh:
-        json.dump(doc, fh, indent=1)  # written piece by piece: the text of json.dumps(doc, indent=1)
+        write_json(fh, doc)
         fh.write("\n")
     with folder.open("contacts.csv", "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
@@ -1077,22 +1118,25 @@ def plot_timeline(result, target):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    spans = _overlap_spans(result)
-    labels = [f"{s['labels'][0]} / {s['labels'][1]}" for s in spans]
-    fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(spans) + 1.2)))
     t0, t1 = result.time_range
+    gap = (t1 - t0) / PLOT_BARS
     hits_of = {}
     for c in result.contacts:
-        hits_of.setdefault(tuple(c[result.part_key]), []).append(c["time"])
-    for row, (p, s) in enumerate(zip(sorted(result.overlaps), spans)):
-        bars = _thin_runs([(a, b) for _, _, a, b in result.overlaps[p]], (t1 - t0) / PLOT_BARS)
+        hits_of.setdefault(tuple(c[result.part_key]), _ThinTimes(gap)).add(c["time"])
+    pair_runs = list(result.pair_runs())
+    labels = []
+    fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(pair_runs) + 1.2)))
+    for row, (p, runs) in enumerate(pair_runs):
+        parts, _, names = result.names(p)
+        labels.append(f"{names[0]} / {names[1]}")
+        bars = _thin_runs(list(zip(runs["start"].tolist(), runs["end"].tolist())), gap)
         ax.broken_barh([(a, b - a) for a, b in bars], (row - 0.35, 0.7), facecolors="tab:blue", alpha=0.5)
-        hits = _thin_times(hits_of.get(tuple(s[result.part_key]), []), (t1 - t0) / PLOT_BARS)
+        hits = hits_of[tuple(parts)].kept if tuple(parts) in hits_of else []
         ax.plot(hits, [row] * len(hits), "o", color="tab:red", ms=4)
-    ax.set_yticks(range(len(spans)))
+    ax.set_yticks(range(len(labels)))
     ax.set_yticklabels(labels, fontsize=7)
     ax.set_xlim(t0, t1)
-    ax.set_ylim(-1, max(len(spans), 1))
+    ax.set_ylim(-1, max(len(labels), 1))
     ax.set_xlabel("time [s]")
     ax.set_title(f"{pathlib.Path(result.model).name}: contacts ({result.motion} motion); red dots: first contacts")
     fig.tight_layout()
@@ -1115,15 +1159,23 @@ def _thin_runs(runs, gap):
     return joined
 
 
-def _thin_times(times, gap):
-    """Times in order; beyond :data:`PLOT_BARS` of them, only those at least ``gap`` after the last one kept."""
-    if len(times) <= PLOT_BARS:
-        return times
-    kept = [times[0]]
-    for x in times[1:]:
-        if x - kept[-1] >= gap:
-            kept.append(x)
-    return kept
+class _ThinTimes:
+    """Times added in order; beyond :data:`PLOT_BARS` of them, only the first and each one at least ``gap`` after
+    the last one kept stay (thinning as it goes, so that a row never holds more than the thinned times)."""
+
+    def __init__(self, gap):
+        self.gap, self.seen, self.kept = gap, 0, []
+
+    def add(self, x):
+        self.seen += 1
+        if self.seen == PLOT_BARS + 1:  # from now on the whole row is thinned: thin what is there
+            kept = self.kept[:1]
+            for y in self.kept[1:]:
+                if y - kept[-1] >= self.gap:
+                    kept.append(y)
+            self.kept = kept
+        if self.seen <= PLOT_BARS or x - self.kept[-1] >= self.gap:
+            self.kept.append(x)
 
 
 def render_frames(model, qpos, result, folder, count=4):
@@ -1144,20 +1196,21 @@ def render_frames(model, qpos, result, folder, count=4):
     data = mujoco.MjData(model)
     opt = scene_option()
     cam = mujoco.MjvCamera()
-    picked, seen = [], set()
-    for c in result.contacts:
-        if c["frame"] not in seen:
-            seen.add(c["frame"])
+    picked, of_frame = [], {}  # the first contact of each of the first ``count`` frames with any; their contacts
+    for c in result.contacts:  # in frame order
+        if c["frame"] not in of_frame:
+            if len(picked) == count:
+                break
             picked.append(c)
-        if len(picked) == count:
-            break
+            of_frame[c["frame"]] = []
+        of_frame[c["frame"]].append(c)
     rgba = model.geom_rgba.copy()
     name_to_geom = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) if not n.startswith("#") else int(n[1:])
                     for n in result.parts}
     try:
         for c in picked:
             k = c["frame"]
-            red = {name_to_geom[n] for cc in result.contacts if cc["frame"] == k for n in cc[result.part_key]
+            red = {name_to_geom[n] for cc in of_frame[k] for n in cc[result.part_key]
                    if n in name_to_geom and model.geom_type[name_to_geom[n]] != mujoco.mjtGeom.mjGEOM_PLANE}
             model.geom_rgba[:] = rgba
             for g in red:

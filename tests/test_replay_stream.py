@@ -234,9 +234,16 @@ def test_plot_thins_only_long_rows():
     spread = [(k * 1.0, k + 0.5) for k in range(replay.PLOT_BARS + 1)]
     assert replay._thin_runs(spread, 0.4) == spread           # gaps wider than a bar: nothing joined
     times = list(np.arange(3 * replay.PLOT_BARS) * 0.1)
-    assert replay._thin_times(times[:10], 1.0) == times[:10]
-    kept = replay._thin_times(times, 0.25)
-    assert len(kept) == replay.PLOT_BARS and all(b - a >= 0.25 for a, b in zip(kept, kept[1:]))
+    few, many = replay._ThinTimes(1.0), replay._ThinTimes(0.25)
+    for x in times[:10]:
+        few.add(x)
+    assert few.kept == times[:10]                             # few times: all drawn
+    for x in times:
+        many.add(x)
+    greedy = times[:1]
+    for x in times[1:]:
+        greedy += [x] if x - greedy[-1] >= 0.25 else []
+    assert many.kept == greedy and len(greedy) == replay.PLOT_BARS   # as thinning the whole row at once
 
 
 def test_rendered_frames_get_their_rows(tmp_path, monkeypatch):

@@ -237,14 +237,17 @@ def main(argv=None):
             try:
                 if args.max_ellipsoids < 1:
                     raise InputError(f"--max-ellipsoids: expected a positive integer, got {args.max_ellipsoids}")
-                with warnings.catch_warnings():  # an empty fit is refused below, in the command's words
-                    warnings.simplefilter("ignore", CoverageWarning)
+                with warnings.catch_warnings(record=True) as notes:  # printed below, in the command's words
+                    warnings.simplefilter("always", CoverageWarning)
                     ellipsoids = fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
                                            include_visual=args.include_visual, max_ellipsoids=args.max_ellipsoids)
                 if len(ellipsoids) == 0:
                     raise ValueError("no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision "
                                      "geometry: nothing to bound" + ("" if args.include_visual else
                                                                      " (--include-visual bounds the visual geoms)"))
+                for note in notes:  # geoms covered within a looser tolerance
+                    print(f"mjccd fit: {args.model}: {str(note.message).removeprefix('fit_model: ')}",
+                          file=sys.stderr)
                 report = None if args.quiet else fit_report(model, ellipsoids, include_visual=args.include_visual)
             except ValueError as exc:
                 raise InputError(f"{args.model}: {exc}") from None

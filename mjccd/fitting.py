@@ -35,6 +35,10 @@ REFINE_ROUNDS = 100  # at most this many times the farthest points of the atoms 
 MAX_ITERATIONS = 100000  # Khachiyan steps of one fit to samples
 
 
+class TooManyEllipsoids(InputError):
+    """A cover needs more ellipsoids than allowed at its tolerance (:func:`cover_shape`)."""
+
+
 @dataclass(frozen=True)
 class Atom:
     """``{centre + shape @ u : |u| <= 1}``; ``shape`` is None for a point set (``centre`` (n, 3))."""
@@ -570,7 +574,7 @@ def cover_shape(shape, tolerance, *, max_ellipsoids=MAX_ELLIPSOIDS):
     cover = {"capsule": _capsule_cover, "cylinder": _cylinder_cover, "box": _box_cover,
              "mesh": _mesh_cover}[shape.kind](shape, t * _DESIGN, int(max_ellipsoids))
     if cover is None:
-        raise InputError(f"tolerance: this {shape.kind} needs more than {int(max_ellipsoids)} ellipsoids to stay "
+        raise TooManyEllipsoids(f"tolerance: this {shape.kind} needs more than {int(max_ellipsoids)} ellipsoids to stay "
                          f"within {t:g} of it; raise the tolerance or max_ellipsoids")
     return cover
 

@@ -162,13 +162,12 @@ FIT_MODEL = """<mujoco>
 def _fit():
     import mujoco
 
-    from mjccd.fitting import DEFAULT_TOLERANCE
     from mjccd.mujoco import fit_model
 
     model = mujoco.MjModel.from_xml_string(FIT_MODEL)
-    fit_model(model)
-    fit_model(model, per="geom")
-    fit_model(model, tolerance=DEFAULT_TOLERANCE)
+    fit_model(model, cache=False)  # fitted, not read from the fit cache, so that its kernels compile
+    fit_model(model, tolerance=None, cache=False)
+    fit_model(model, tolerance=None, per="geom", cache=False)
 
 
 def _patches():

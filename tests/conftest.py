@@ -6,7 +6,13 @@ skip with the reason, naming both versions, wherever the import and a minimal us
 stepped once) fail.  ``mujoco`` marks the files that cover the MuJoCo layer (core, monitor, guard,
 replay, testing helpers): ``pytest -m mujoco`` runs them alone (``make test-mujoco4 PYTEST4="-m mujoco"``).
 """
+import os
+import shutil
+import tempfile
+
 import pytest
+
+_FIT_CACHE = None  # the session's own fit cache folder (mjccd.mujoco.fit_cache), so that the user's is untouched
 
 # The MuJoCo-facing subset (pytest -m mujoco): every test file that loads a MuJoCo model or calls MuJoCo
 # (add a new one here), and examples/ (this hook sees the whole session's items).  The files left out
@@ -19,14 +25,23 @@ MUJOCO_FILES = {
     "test_replay_stream.py", "test_chain_filters.py", "test_scene.py", "test_fit.py", "test_bvh.py",
     "test_bvh_fit_files.py", "test_tunneling_benchmark.py", "test_bench_monitor.py", "test_bench_peers.py",
     "test_adapter.py", "test_pairs.py", "test_bench_fidelity.py", "test_rollout.py", "test_geoms_mode.py",
+    "test_fit_cache.py", "test_default_fidelity.py", "test_spool.py",
 }
 
 
 def pytest_configure(config):
+    global _FIT_CACHE
+    _FIT_CACHE = tempfile.mkdtemp(prefix="mjccd-test-fits-")
+    os.environ["MJCCD_FIT_CACHE"] = _FIT_CACHE  # subprocesses of the tests inherit it
     config.addinivalue_line("markers", "dm_control: builds a dm-control environment; skipped where dm-control "
                                        "does not work with the installed MuJoCo (MuJoCo 4 with dm-control 1.0.50)")
     config.addinivalue_line("markers", "mujoco: the MuJoCo-facing files (fit, monitor, guard, replay, scene, "
                                        "testing, examples), set in tests/conftest.py")
+
+
+def pytest_unconfigure(config):
+    if _FIT_CACHE is not None:
+        shutil.rmtree(_FIT_CACHE, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -272,7 +272,7 @@ TERRAIN = """
 
 def test_plane_pairs_and_the_geoms_mjccd_cannot_check_yet():
     model = mujoco.MjModel.from_xml_string(TERRAIN)
-    ellipsoids = fit_model(model)
+    ellipsoids = fit_model(model, tolerance=None)  # one per body
     assert ellipsoids.bodies == ("crate", "ball", "cart")
     assert_same_as_mujoco(model, ellipsoids)
     floor, wall = 0, 2
@@ -411,15 +411,16 @@ def test_a_dm_control_wrapper_without_pairs_adds_the_no_contact_entries():
 
     from mjccd.dm_control import OBSERVATION_KEYS, CCDWrapper
 
-    # geoms mode: MuJoCo collides the rails with the cart and the pole; their ellipsoids overlap at qpos0, so
-    # ellipsoid mode drops those pairs and has none left
+    # geoms mode: MuJoCo collides the rails with the cart and the pole; their one-per-body ellipsoids overlap at
+    # qpos0, so ellipsoid mode with that fit drops those pairs and has none left
     env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False)
     rows = env.monitor.geoms.labels_of_rows
     assert sorted((rows[a], rows[b]) for a, b in env.monitor.pairs) == [
         ("rail1", "cart"), ("rail1", "pole_1"), ("rail2", "cart"), ("rail2", "pole_1")]
     with pytest.warns(CoverageWarning, match="^no pair to check: ") as said:
-        env = CCDWrapper(suite.load("cartpole", "swingup", task_kwargs={"random": 0}), planes=False,
-                         mode="ellipsoids")
+        cartpole = suite.load("cartpole", "swingup", task_kwargs={"random": 0})
+        env = CCDWrapper(cartpole, planes=False, mode="ellipsoids",
+                         ellipsoids=fit_model(cartpole.physics.model.ptr, tolerance=None))
     assert len(said) == 1 and len(env.monitor.pairs) == 0
     spec = env.observation_spec()
     env.reset()

@@ -4,7 +4,7 @@ ellipsoid mode with two fits.
 Each environment (dm-control suite and Gymnasium models; Gymnasium's only when installed) runs ``--steps``
 MuJoCo steps under random controls, uniform in each actuator's range and held for ``HOLD`` steps, from the
 environment's own reset state.  The same steps are checked by :class:`~mjccd.mujoco.CCDMonitor` with every
-colliding pair reported (``all_pairs``): in geoms mode (the default: the model's own geoms, the one-per-body fit
+colliding pair reported (``all_pairs``): in geoms mode (the default: the model's own geoms, the default fit
 standing for meshes only) and in ellipsoid mode with the one-per-body fit and the default tolerance's fit.
 
 * **recall**: every *new* MuJoCo contact (a geom pair with ``dist`` below ``-DEPTH``, beyond MuJoCo's own
@@ -43,7 +43,7 @@ from mjccd.fitting import DEFAULT_TOLERANCE
 from mjccd.mujoco import CCDMonitor, fit_model
 from mjccd.mujoco.pairs import bounded_geoms, plane_pairs
 
-DM_CONTROL = {"humanoid": ("humanoid", "run"), "humanoid_CMU": ("humanoid_CMU", "run"),
+DM_CONTROL = {"humanoid": ("humanoid", "run"), "humanoid_CMU": ("humanoid_CMU", "run"), "cheetah": ("cheetah", "run"),
               "walker": ("walker", "walk"), "quadruped": ("quadruped", "walk"),
               "manipulator": ("manipulator", "bring_ball"), "hopper": ("hopper", "hop"),
               "acrobot": ("acrobot", "swingup")}
@@ -128,11 +128,12 @@ def time_env_steps(name, kind, ellipsoids, mode, steps, seed):
 
 
 def setups(model):
-    """[(mode, fit label, EllipsoidSet)]: geoms mode (the one-per-body fit stands for meshes), then ellipsoid
-    mode with the one-per-body fit and the default tolerance's."""
-    one = fit_model(model)
-    return [("geoms", ONE_PER_BODY, one), ("ellipsoids", ONE_PER_BODY, one),
-            ("ellipsoids", f"tolerance {DEFAULT_TOLERANCE * 100:g} cm", fit_model(model, tolerance=DEFAULT_TOLERANCE))]
+    """[(mode, fit label, EllipsoidSet)]: geoms mode with the default fit (standing for meshes only), then
+    ellipsoid mode with the one-per-body fit and the default fit (the default tolerance's)."""
+    fitted = fit_model(model)
+    tight = f"tolerance {DEFAULT_TOLERANCE * 100:g} cm"
+    return [("geoms", tight, fitted), ("ellipsoids", ONE_PER_BODY, fit_model(model, tolerance=None)),
+            ("ellipsoids", tight, fitted)]
 
 
 def random_controls(model, steps, seed):

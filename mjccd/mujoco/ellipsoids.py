@@ -14,13 +14,15 @@ import numpy as np
 
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
-from mjccd.fitting import (MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES, Shape, cover_report, cover_shape,
-                           fit_shapes, within_tolerance)
+from mjccd.fitting import (DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES, Shape,
+                           TooManyEllipsoids, cover_report, cover_shape, fit_shapes, within_tolerance)
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
+from mjccd.mujoco import fit_cache
 from mjccd.mujoco.warnings import CoverageWarning
 
 FORMAT_VERSION = 1
 BOUND_GROUP = 5  # the geom group mjccd fit writes its bounding ellipsoids to
+LOOSENINGS = 12  # a geom needing too many ellipsoids is tried within 2, 4, ... 4096 times the tolerance
 SUPPORTED = {
     mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
     mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
@@ -284,10 +286,18 @@ def _hull_graph(model, mesh_id, vertices):
 
 
 def collision_geoms(model, body_id, *, include_visual=False):
-    """Geom ids of a body that take part in collisions (all geoms with ``include_visual``)."""
+    """Geom ids of a body that take part in collisions (with ``include_visual``, all its geoms but the bounds
+    ``mjccd fit`` wrote: visual ellipsoids in group :data:`BOUND_GROUP`)."""
     start, num = model.body_geomadr[body_id], model.body_geomnum[body_id]
     ids = range(start, start + num) if start >= 0 else range(0)
-    return [g for g in ids if include_visual or (model.geom_contype[g] | model.geom_conaffinity[g])]
+    return [g for g in ids if (model.geom_contype[g] | model.geom_conaffinity[g])
+            or (include_visual and not _is_bound(model, g))]
+
+
+def _is_bound(model, g):
+    """Geom g is a fitted bound: a visual ellipsoid in :data:`BOUND_GROUP`."""
+    return (model.geom_type[g] == mujoco.mjtGeom.mjGEOM_ELLIPSOID and model.geom_group[g] == BOUND_GROUP
+            and not (model.geom_contype[g] | model.geom_conaffinity[g]))
 
 
 def geom_label(model, geom_id):
@@ -295,35 +305,39 @@ def geom_label(model, geom_id):
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(geom_id)) or f"#{int(geom_id)}"
 
 
-def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=False,
-              max_ellipsoids=MAX_ELLIPSOIDS):
+def fit_model(model, *, tolerance=DEFAULT_TOLERANCE, per="body", bodies=None, include_visual=False,
+              max_ellipsoids=MAX_ELLIPSOIDS, cache=True):
     """Bounding ellipsoids of a compiled model as an :class:`EllipsoidSet`.
 
     Two fits:
 
-    * ``tolerance=None`` (the default): one ellipsoid per body (``per="body"``)
-      or per geom (``per="geom"``), the minimum-volume one with proven
-      containment.  Simple and few, but loose: a box gets ``sqrt(3)`` times
-      its half sizes, a limb capsule's ends 7-8 cm more.
-    * ``tolerance=t`` (a length, e.g. :data:`mjccd.fitting.DEFAULT_TOLERANCE`,
-      0.01 m, which ``mjccd fit`` uses): each geom is covered by the fewest
+    * ``tolerance=t`` (the default: :data:`mjccd.fitting.DEFAULT_TOLERANCE`,
+      0.01 m, as ``mjccd fit``): each geom is covered by the fewest
       ellipsoids that keep every point of them within ``t`` of the geom
       (:func:`mjccd.fitting.cover_shape`; a mesh is its convex hull, as
       MuJoCo collides it).  With ``per="body"`` a body's geoms share one
       ellipsoid when that one is proven to stay within ``t`` of them
       (:func:`mjccd.fitting.within_tolerance`), e.g. a finger of two small
       capsules; with ``per="geom"`` every geom gets its own cover.
+    * ``tolerance=None``: one ellipsoid per body (``per="body"``) or per geom
+      (``per="geom"``), the minimum-volume one with proven containment.
+      Fewer, but loose: a box gets ``sqrt(3)`` times its half sizes, a limb
+      capsule's ends 7-8 cm more.
 
     Every point of every bounded geom lies inside the union of the ellipsoids
-    in both fits.
+    in both fits.  Fits are kept on disk (:mod:`mjccd.mujoco.fit_cache`,
+    keyed by the model's geometry, the options and the fitting code), so the
+    same fit in another process is read back instead of computed.
 
     Args:
         model: ``mujoco.MjModel``.
-        tolerance: None, or the most a point of an ellipsoid may lie from its geometry (model units, > 0).
+        tolerance: the most a point of an ellipsoid may lie from its geometry (model units, > 0), or None.
         per: "body" or "geom" (see above).
         bodies: body names or ids to fit; default every body with supported collision geometry.
         include_visual: also bound geoms with ``contype = conaffinity = 0``.
-        max_ellipsoids: with a tolerance, refuse a geom that needs more ellipsoids than this.
+        max_ellipsoids: with a tolerance, the most ellipsoids for one geom: a geom that needs more is covered
+            within twice, four times, ... the tolerance, the least that needs no more, with a CoverageWarning.
+        cache: read and keep the fit in the on-disk cache (False: always fit, keep nothing).
 
     Planes, height fields and SDF geoms are unbounded or implicit: they are
     skipped (and a body that has nothing else is left out).  ``geoms`` names
@@ -341,7 +355,41 @@ def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=
         if not valid or not (np.isfinite(tolerance) and tolerance > 0):
             raise ValueError(f"tolerance: expected None or a positive length, got {tolerance!r}")
     explicit = bodies is not None
-    body_ids = _resolve_bodies(model, bodies) if explicit else range(model.nbody)
+    body_ids = [int(b) for b in _resolve_bodies(model, bodies)] if explicit else list(range(model.nbody))
+    options = {"tolerance": None if tolerance is None else float(tolerance), "per": per, "include_visual":
+               bool(include_visual), "max_ellipsoids": int(max_ellipsoids), "bodies": body_ids if explicit else None}
+    name = fit_cache.key(model, options) if cache else None
+    found = None if name is None else fit_cache.load(name)
+    if found is not None:
+        try:
+            stored = EllipsoidSet(**found[0])
+        except InputError:  # a damaged entry: fitted again below, and replaced
+            stored = None
+        if stored is not None and len(stored):
+            for note in found[1]:
+                warnings.warn(note, CoverageWarning, stacklevel=2)
+            return stored
+    fitted, notes = _fit(model, tolerance, per, body_ids, explicit, include_visual, max_ellipsoids)
+    for note in notes:
+        warnings.warn(note, CoverageWarning, stacklevel=2)
+    if fitted is None:
+        hint = "" if include_visual else " (include_visual=True also bounds the visual geoms)"
+        warnings.warn(f"fit_model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision geometry: "
+                      f"nothing to bound{hint}", CoverageWarning, stacklevel=2)
+        return EllipsoidSet(bodies=(), radii=np.zeros((0, 3)), positions=np.zeros((0, 3)),
+                            quaternions=np.zeros((0, 4)))
+    if name is not None:
+        fit_cache.store(name, fitted, notes)
+    # built again from its own arrays, as reading the stored copy builds it (normalising the quaternions once
+    # more): a fit and its cached copy are the same to the last bit
+    return EllipsoidSet(fitted.bodies, fitted.radii, fitted.positions, fitted.quaternions, fitted.geoms,
+                        fitted.volume_ratios)
+
+
+def _fit(model, tolerance, per, body_ids, explicit, include_visual, max_ellipsoids):
+    """``(ellipsoids, notes)``: the fit of :func:`fit_model` (its arguments checked; None when there is nothing to
+    bound) and the warnings it owes (geoms covered within a looser tolerance)."""
+    notes = []
     out = {"bodies": [], "geoms": [], "radii": [], "positions": [], "quaternions": [], "volume_ratios": []}
 
     def emit(body_id, geom_name, ellipsoids, volume):
@@ -368,7 +416,7 @@ def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=
             continue
         try:
             if tolerance is not None:
-                _cover_body(model, b, usable, tolerance, per, max_ellipsoids, emit)
+                _cover_body(model, b, usable, tolerance, per, max_ellipsoids, emit, notes)
             elif per == "geom":
                 for g in usable:
                     shape = geom_shape(model, g)
@@ -378,17 +426,15 @@ def fit_model(model, *, tolerance=None, per="body", bodies=None, include_visual=
                 emit(b, "", [fit_shapes(shapes)], sum(shape.volume() for shape in shapes))
         except ValueError as exc:
             raise ValueError(f"body {label!r}: {exc}") from None
-    if not out["bodies"]:
-        hint = "" if include_visual else " (include_visual=True also bounds the visual geoms)"
-        warnings.warn(f"fit_model: no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision geometry: "
-                      f"nothing to bound{hint}", CoverageWarning, stacklevel=2)
-        return EllipsoidSet(bodies=(), radii=np.zeros((0, 3)), positions=np.zeros((0, 3)),
-                            quaternions=np.zeros((0, 4)))
-    return EllipsoidSet(**out)
+    return (EllipsoidSet(**out) if out["bodies"] else None), notes
 
 
-def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit):
-    """Emit a body's ellipsoids to a tolerance: one for all its geoms when that is proven close enough, else covers."""
+def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit, notes):
+    """Emit a body's ellipsoids to a tolerance: one for all its geoms when that is proven close enough, else covers.
+
+    A geom that needs more than ``max_ellipsoids`` is covered within the least of twice, four times, ... the
+    tolerance that needs no more, and a line saying so goes to ``notes``.
+    """
     shapes = [geom_shape(model, g, hull=True) for g in geoms]
     if per == "body" and len(shapes) > 1:
         whole = fit_shapes(shapes)
@@ -396,10 +442,22 @@ def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit):
             emit(body_id, "", [whole], sum(shape.volume() for shape in shapes))
             return
     for g, shape in zip(geoms, shapes):
-        try:
-            cover = cover_shape(shape, tolerance, max_ellipsoids=max_ellipsoids)
-        except ValueError as exc:
-            raise ValueError(f"geom {geom_label(model, g)!r}: {exc}") from None
+        used = tolerance
+        for _ in range(LOOSENINGS + 1):
+            try:
+                cover = cover_shape(shape, used, max_ellipsoids=max_ellipsoids)
+                break
+            except TooManyEllipsoids:
+                used *= 2.0
+            except ValueError as exc:
+                raise ValueError(f"geom {geom_label(model, g)!r}: {exc}") from None
+        else:
+            raise ValueError(f"geom {geom_label(model, g)!r}: needs more than {max_ellipsoids} ellipsoids even within "
+                             f"{used / 2:g} of it")
+        if used != tolerance:
+            notes.append(f"fit_model: geom {geom_label(model, g)!r} of body {body_label(model, body_id)!r} needs more "
+                         f"than {max_ellipsoids} ellipsoids within {tolerance:g} of it; it is covered within {used:g} "
+                         f"({len(cover)} ellipsoids; raise max_ellipsoids for a tighter cover)")
         emit(body_id, geom_label(model, g), cover, shape.volume())
 
 

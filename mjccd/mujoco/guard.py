@@ -671,7 +671,7 @@ class GuardedWrapper(DelegatingEnvironment):
 
     Args:
         env: a ``dm_control.rl.control.Environment``.
-        ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
+        ellipsoids: :class:`EllipsoidSet`; default: ``fit_model(model, per=per)`` (1 cm, read from the fit cache).
         pairs, motion, max_rechecks, overshoot, contact_step, max_penetration, on_clamp, mode: as in
             :class:`GuardedStepper`.
 

@@ -300,7 +300,7 @@ class CCDWrapper(DelegatingEnvironment):
 
     Args:
         env: a ``dm_control.rl.control.Environment`` (e.g. from ``suite.load``).
-        ellipsoids: :class:`EllipsoidSet`; default: fitted per body (or per geom with ``per="geom"``).
+        ellipsoids: :class:`EllipsoidSet`; default: ``fit_model(model, per=per)`` (1 cm, read from the fit cache).
         pairs, motion, on_contact, all_pairs, report_overlapping, planes, mode: as in
             :class:`~mjccd.mujoco.CCDMonitor` (by default the model's own geoms, exact).
     """

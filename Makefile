@@ -3,9 +3,10 @@ PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.mjccd-installed
-# the default set-up stays on MuJoCo 3 (dm-control runs there); test-mujoco4 pins MuJoCo 4
+# the default set-up stays on MuJoCo 3; test-mujoco4 pins MuJoCo 4 with the first dm-control that runs on it
 MUJOCO3 ?= mujoco>=3.17,<4
-MUJOCO4 ?= mujoco==4.0.0
+MUJOCO4 ?= mujoco==4.0.1
+DM_CONTROL4 ?= dm-control>=1.0.52
 
 .PHONY: demo test test-mujoco4 warmup bench bench-quick tunneling clean
 
@@ -28,7 +29,7 @@ test: $(STAMP)
 warmup: $(STAMP)
 	$(VENV)/bin/mjccd warmup
 
-# the suite on MuJoCo 4 in an environment of its own; dm-control's tests skip there with the reason.
+# the suite on MuJoCo 4 in an environment of its own, dm-control's tests included (1.0.52 runs on MuJoCo 4).
 # PYTEST4="-m mujoco" runs only the MuJoCo-facing files (fit, monitor, guard, replay, scene, testing, examples;
 # tests/conftest.py), under a minute once `make test` has compiled the kernels (numba's cache is shared)
 PYTEST4    ?=
@@ -38,7 +39,7 @@ STAMP4     := $(VENV4)/.mjccd-installed
 $(STAMP4): pyproject.toml
 	test -x $(PY4) || $(PYTHON) -m venv $(VENV4)
 	$(PY4) -m pip install -q --upgrade pip
-	$(PY4) -m pip install -q -e ".[test]" "$(MUJOCO4)"
+	$(PY4) -m pip install -q -e ".[test]" "$(MUJOCO4)" "$(DM_CONTROL4)"
 	touch $(STAMP4)
 
 test-mujoco4: $(STAMP4)

@@ -1,4 +1,7 @@
-"""One-line failure reports of the commands that write files (``mjccd fit``, ``mjccd import-bvh``)."""
+"""What the commands share: one-line failure reports of those that write files (``mjccd fit``, ``mjccd
+import-bvh``), and help text in plain words (the docstrings it is made from use reStructuredText markup)."""
+import argparse
+import re
 import sys
 
 from mjccd.errors import MjccdError
@@ -18,3 +21,19 @@ def failure(command, exc, outputs):
     else:
         print(f"mjccd {command}: cannot write {', '.join(outputs)}: {exc.strerror}", file=sys.stderr)
     return 2
+
+
+_ROLE = re.compile(r":[a-z]+:`(~?)([^`]+)`")
+
+
+def plain(text):
+    """``text`` without reStructuredText markup: ``code`` and `code` become code, :class:`~a.b.C` becomes C."""
+    text = _ROLE.sub(lambda m: m.group(2).rsplit(".", 1)[-1] if m.group(1) else m.group(2), text)
+    return re.sub(r"``([^`]*)``", r"\1", text).replace("`", "")
+
+
+class PlainHelpFormatter(argparse.HelpFormatter):
+    """argparse's help with the docstrings' markup taken out (:func:`plain`)."""
+
+    def format_help(self):
+        return plain(super().format_help())

@@ -28,6 +28,7 @@ from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
 from mjccd.fitting import ball, fit_atoms
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
+from mjccd._command import PlainHelpFormatter
 
 # CMU ASF length unit: 1/0.45 inch (about 0.0564 m).
 CMU_SCALE = 0.0254 / 0.45
@@ -652,7 +653,8 @@ def check_model(xml, qpos, source):
 
 def main(argv=None):
     """``mjccd import-bvh CLIP.bvh -o MODEL.xml [--traj TRAJ.npz]``; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="mjccd import-bvh",
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd import-bvh",
                                      description="Build an MJCF skeleton and a qpos trajectory from a BVH clip. "
                                                  "Bodies keep the joint names, with characters other than letters, "
                                                  "digits, '_', '.' and '-' replaced by '_' (and _2, _3, ... added "

@@ -9,6 +9,8 @@ import json
 import os
 import sys
 
+from mjccd import __version__
+from mjccd._command import PlainHelpFormatter
 from mjccd.errors import MjccdError
 
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as a shell reports a command ended by Ctrl-C
@@ -79,9 +81,16 @@ DELEGATED = {
     "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
     "warmup": ("mjccd.warmup", "compile every kernel now (numba caches them), one line per job"),
 }
-BENCH_SUITES = {"core": "mjccd.bench.core", "scene": "mjccd.bench.scene", "monitor": "mjccd.bench.monitor",
-                "patches": "mjccd.patches.bench", "fidelity": "mjccd.bench.fidelity", "batch": "mjccd.bench.batch",
-                "geoms": "mjccd.bench.geoms"}
+# bench suites: (module, what it measures)
+BENCH_SUITES = {
+    "core": ("mjccd.bench.core", "the exact solver on ellipsoid pairs, against FCL and brute force"),
+    "scene": ("mjccd.bench.scene", "the frame pipeline (filters, then exact solves) on boxing workloads"),
+    "monitor": ("mjccd.bench.monitor", "CCDMonitor.step against a bare mj_step"),
+    "patches": ("mjccd.patches.bench", "Chen et al.'s patch solver on its published query sets"),
+    "fidelity": ("mjccd.bench.fidelity", "recall, precision and cost of the wrappers on MuJoCo environments"),
+    "batch": ("mjccd.bench.batch", "many worlds at once on the CPU threads"),
+    "geoms": ("mjccd.bench.geoms", "the exact geom solver on MuJoCo's shape pairs, graded by mj_geomDistance"),
+}
 
 
 def _choose_gl_backend():
@@ -104,13 +113,17 @@ def _delegate(module_name, argv):
 
 
 def _cmd_bench(args):
-    return _delegate(BENCH_SUITES[args.suite], args.rest)
+    return _delegate(BENCH_SUITES[args.suite][0], args.rest)
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(prog="mjccd", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"mjccd {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    solve = sub.add_parser("solve", help="solve CCD cases given as JSON (format version 1)")
+    solve = sub.add_parser("solve", help="solve CCD cases given as JSON (format version 1)",
+                           formatter_class=PlainHelpFormatter)
     solve.add_argument("cases", help="input JSON: {\"version\": 1, \"cases\": [...]}")
     solve.add_argument("-o", "--output", help="write results here instead of stdout (refused if it exists)")
     solve.add_argument("--force", action="store_true", help="replace an existing --output (even the input)")
@@ -118,8 +131,11 @@ def build_parser():
     solve.set_defaults(func=_cmd_solve)
     for name, (_, text) in DELEGATED.items():
         sub.add_parser(name, help=text, add_help=False)  # listed here, parsed by its module
-    bench = sub.add_parser("bench", help="measure speed and accuracy against peers")
-    bench.add_argument("suite", choices=sorted(BENCH_SUITES))
+    suites = "\n".join(f"  {name:<9} {text}" for name, (_, text) in BENCH_SUITES.items())
+    bench = sub.add_parser("bench", help="measure speed and accuracy against peers",
+                           formatter_class=argparse.RawDescriptionHelpFormatter,
+                           description=f"suites:\n{suites}\n\nmjccd bench SUITE --help: the suite's options")
+    bench.add_argument("suite", choices=list(BENCH_SUITES), metavar="SUITE", help="one of: " + ", ".join(BENCH_SUITES))
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the suite (--help)")
     bench.set_defaults(func=_cmd_bench)
     return parser

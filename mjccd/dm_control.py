@@ -1,8 +1,8 @@
 """dm-control integration: ``CCDWrapper`` adds the exact first contact of each control step to observations.
 
-The wrappers need a dm-control that works with the installed MuJoCo (not yet MuJoCo 4 with
-dm-control 1.0.50): ``dm_control_problem()`` says why not, and the wrappers raise
-``DmControlUnavailableError`` naming both versions.
+The wrappers need a dm-control that works with the installed MuJoCo (on MuJoCo 4, dm-control 1.0.52 or
+later): ``dm_control_problem()`` says why not, and the wrappers raise ``DmControlUnavailableError`` naming
+both versions.
 """
 from mjccd.mujoco.wrappers import (OBSERVATION_KEYS, CCDWrapper, DmControlUnavailableError, dm_control_problem,
                                    observation_specs)

@@ -18,6 +18,7 @@ from mjccd.errors import InputError, MjccdError
 from mjccd.fitting import DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES
 from mjccd.mujoco.ellipsoids import fit_model, fit_report
 from mjccd.mujoco.warnings import CoverageWarning, mujoco_warnings
+from mjccd._command import PlainHelpFormatter
 
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
@@ -199,7 +200,8 @@ def _output_paths(args):
 
 def main(argv=None):
     """``mjccd fit MODEL.xml -o OUT.xml``: fit, report volume ratios, write MJCF and an ellipsoid file."""
-    parser = argparse.ArgumentParser(prog="mjccd fit", description=DESCRIPTION)
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd fit", description=DESCRIPTION)
     parser.add_argument("model", help="MJCF model file")
     parser.add_argument("-o", "--output", help="MJCF file with the ellipsoids added as visual geoms")
     parser.add_argument("--ellipsoids", help="ellipsoid file to write (.json or .npz); "

@@ -59,6 +59,7 @@ from mjccd.mujoco.motions import State, as_state
 from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.scene import FrameCounters
+from mjccd._command import PlainHelpFormatter
 
 MOTIONS = ("rigid", "affine", "chain")
 PLANE_RULES = ("all", "mujoco", "none")  # which static planes each ellipsoid is checked against (replay_planes)
@@ -805,12 +806,14 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     contact: what :func:`render_frames` draws.
     """
     model = checker.model
+    start = _time.perf_counter()
     if result.mode == "geoms":  # the first compile (or cache load) is not part of the timing
         p = checker.qpos_poses(model.qpos0[None])[0]
         checker.check_poses(0.0, 1.0, p, p, all_pairs=True)
     else:
         warm_up(checker.motion)
         checker.qpos_poses(model.qpos0[None])  # nor is the kinematics kernel's
+    t_warm = _time.perf_counter() - start
     mocap = model.body_mocapid >= 0
     mocap_pos, mocap_quat = model.body_pos[mocap].copy(), model.body_quat[mocap].copy()
     counters = dict.fromkeys(COUNTER_NAMES, 0)
@@ -822,7 +825,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False)
+        bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False, disable=None)  # not a tty: none
     try:
         with interrupts.deferred() as check, closing(_windows(trajectory, chunk_frames)) as windows:
             for first, qpos, time in windows:  # frames first .. stop
@@ -861,7 +864,7 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     result.time_range = (float(t_first), float(t_last))
     result.counters = {name: int(v) for name, v in counters.items()}
     result.timing = {"kinematics_s": t_kin, "ccd_s": t_ccd, "intervals": n,
-                     "frames_per_s": n / max(t_kin + t_ccd, 1e-12)}
+                     "frames_per_s": n / max(t_kin + t_ccd, 1e-12), "warm_up_s": t_warm}
 
 
 def _check_centres(poses, first, result):
@@ -937,7 +940,7 @@ def _record(result, k, report, t0, t1, flags):
     and its plane geom's.
     """
     dt = t1 - t0
-    for c in sorted(report.contacts, key=lambda c: c.pair):
+    for c in sorted(report.contacts, key=lambda c: (c.fraction, c.pair)):  # in time order, then pair order
         flags[c.pair] = True
         if c.status_at_start != "separate":
             continue
@@ -1056,7 +1059,8 @@ def summary(result):
         f"pairs ever in contact: {pairs_hit}",
         "filter: " + ", ".join(f"{k} {v}" for k, v in c.items()),
         f"time: kinematics {t['kinematics_s'] * 1e3:.1f} ms, CCD {t['ccd_s'] * 1e3:.1f} ms, "
-        f"{t['frames_per_s']:.0f} frames/s",
+        f"{t['frames_per_s']:.0f} frames/s (before them, compiling or loading the kernels: "
+        f"{t['warm_up_s']:.1f} s)",
     ]
     return "\n".join(lines)
 
@@ -1270,7 +1274,8 @@ def _coverage_notes():
 
 def main(argv=None):
     """``mjccd replay MODEL.xml TRAJ [--motion ...] [--pairs ...] [--out DIR [--force]]``; returns the exit status."""
-    parser = argparse.ArgumentParser(prog="mjccd replay",
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd replay",
                                      description="Replay a trajectory and report the first contacts "
                                                  "of the model's geoms (or of its bounding ellipsoids).")
     parser.add_argument("model", help="MJCF model with bounding ellipsoids (geom group 5)")

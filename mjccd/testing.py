@@ -2,11 +2,13 @@
 import os
 import zipfile
 
+import mujoco
 import numpy as np
 
 from mjccd import _validate
 from mjccd.ccd import collision_intervals
 from mjccd.errors import InputError, InputTypeError
+from mjccd.fitting import DEFAULT_TOLERANCE
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.adapter import ModelAdapter, load_model
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
@@ -110,12 +112,41 @@ def trajectory_contacts(model, trajectory, *, pairs=None, ellipsoids=None, motio
     fitted bounds), as in :class:`~mjccd.mujoco.CCDMonitor`.
     """
     checker, states = _setup(model, trajectory, ellipsoids, times, pairs, motion, mode)
-    found = []
+    return [c for _, c in _step_contacts(checker, states)]
+
+
+def _step_contacts(checker, states):
+    """``(k, first contact of step k)`` of every step that has one."""
     for k, (s0, s1) in enumerate(zip(states, states[1:])):
         c = checker.check(s0, s1, names=(f"trajectory[{k}]", f"trajectory[{k + 1}]")).first
         if c is not None:
-            found.append(c)
-    return found
+            yield k, c
+
+
+def _what_was_checked(checker, ellipsoids):
+    """How the contact was computed, in words, for a failure message."""
+    if not isinstance(checker, ModelAdapter):
+        return "the model's own geoms (geoms mode)"
+    fit = ("the caller's ellipsoids" if ellipsoids is not None else
+           f"the default fit, fit_model(model): within {DEFAULT_TOLERANCE:g} of the geoms")
+    return f"bounding ellipsoids (ellipsoid mode), {fit}: a contact of the bounds, possibly before the geoms touch"
+
+
+def _real_distance(model, state0, state1, fraction, bodies):
+    """The least distance between the two bodies' geoms at ``fraction`` of the step, by MuJoCo
+    (``mj_differentiatePos``/``mj_integratePos`` between the step's qpos, ``mj_geomDistance``), or None when a body
+    has no geom."""
+    data = mujoco.MjData(model)
+    velocity = np.zeros(model.nv)
+    mujoco.mj_differentiatePos(model, velocity, 1.0, state0.qpos, state1.qpos)
+    qpos = np.array(state0.qpos, dtype=float)
+    mujoco.mj_integratePos(model, qpos, velocity, fraction)
+    data.qpos[:] = qpos
+    data.mocap_pos[:], data.mocap_quat[:] = state0.mocap_pos, state0.mocap_quat
+    mujoco.mj_kinematics(model, data)
+    geoms = [[g for g in range(model.ngeom) if model.geom_bodyid[g] == b] for b in bodies]
+    gaps = [mujoco.mj_geomDistance(model, data, g1, g2, 10.0, None) for g1 in geoms[0] for g2 in geoms[1]]
+    return min(gaps) if gaps else None
 
 
 def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None,
@@ -135,20 +166,24 @@ def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=
         mode: as in :func:`trajectory_contacts` (by default the model's own geoms).
     """
     time, tol = _validate.scalar(time, "time"), _tolerance(tol)
-    found = trajectory_contacts(model, trajectory, pairs=[pair], ellipsoids=ellipsoids, motion=motion, times=times,
-                                mode=mode)
+    checker, states = _setup(model, trajectory, ellipsoids, times, [pair], motion, mode)
+    found = next(_step_contacts(checker, states), None)
     head = f"first contact of {pair[0]!r} and {pair[1]!r}: expected t = {time:.9g} s (tol {tol:g})"
-    if not found:
-        qpos_times = load_trajectory(trajectory, load_model(model), times)[1]
-        raise AssertionError(f"{head}, found no contact over [{qpos_times[0]:.9g}, {qpos_times[-1]:.9g}] s")
-    c = found[0]
+    checked = f"checked: {_what_was_checked(checker, ellipsoids)}"
+    if found is None:
+        raise AssertionError(f"{head}, found no contact over [{states[0].time:.9g}, {states[-1].time:.9g}] s; "
+                             f"{checked}")
+    k, c = found
     if _uncertain(c):
         lo, hi = c.bracket
         if not lo - tol <= time <= hi + tol:
-            raise AssertionError(f"{head}, found {_describe(c)}; {time:.9g} s is outside that bracket")
+            raise AssertionError(f"{head}, found {_describe(c)}; {time:.9g} s is outside that bracket; {checked}")
         return c
     if abs(c.time - time) > tol:
-        raise AssertionError(f"{head}, found {_describe(c)}; off by {c.time - time:+.3g} s")
+        gap = _real_distance(checker.model, states[k], states[k + 1], c.fraction, c.body_ids)
+        real = "" if gap is None else (f"; at that instant the real geoms are {gap:.3g} m apart (MuJoCo's "
+                                       f"mj_geomDistance)")
+        raise AssertionError(f"{head}, found {_describe(c)}; off by {c.time - time:+.3g} s; {checked}{real}")
     return c
 
 

@@ -32,6 +32,7 @@ import time
 import numpy as np
 
 from mjccd import _cache
+from mjccd._command import PlainHelpFormatter
 
 
 def _core():
@@ -239,7 +240,8 @@ def run(jobs=None, stream=None):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd warmup", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd warmup", description=__doc__.splitlines()[0])
     parser.add_argument("jobs", nargs="*", metavar="JOB", help=f"jobs to run (default: all): {', '.join(JOBS)}")
     parser.add_argument("--list", action="store_true", help="list the jobs and exit")
     args = parser.parse_args(argv)

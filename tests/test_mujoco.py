@@ -1,4 +1,6 @@
 """MuJoCo layer: motions between states, pair sets, the step monitor, contacts at known times."""
+import re
+
 import mujoco
 import numpy as np
 import pytest
@@ -382,7 +384,13 @@ def test_testing_helpers_pass_and_fail_readably():
         assert_first_contact(m, qpos, ("left", "right"), 0.05, tol=1e-6)
     msg = str(err.value)
     assert "expected t = 0.05 s" in msg and "found t = 0.07 s ('left'-'right'" in msg and "point [" in msg
-    assert "off by +0.02 s" in msg
+    assert "off by +0.02 s" in msg and "checked: the model's own geoms (geoms mode)" in msg
+    assert re.search(r"the real geoms are -?[0-9.e+-]+ m apart \(MuJoCo's mj_geomDistance\)", msg)
+    with pytest.raises(AssertionError) as err:  # ellipsoid mode: the message says which fit, and how far the geoms are
+        assert_first_contact(m, qpos, ("left", "right"), 0.08, tol=1e-6, mode="ellipsoids")
+    msg = str(err.value)
+    assert "bounding ellipsoids (ellipsoid mode), the default fit, fit_model(model): within 0.01 of the geoms" in msg
+    assert re.search(r"at that instant the real geoms are -?[0-9.e+-]+ m apart \(MuJoCo's mj_geomDistance\)", msg)
     with pytest.raises(AssertionError, match=r"found no contact over \[0, 0.01\] s"):
         assert_first_contact(m, qpos[:6], ("left", "right"), 0.05)
     with pytest.raises(AssertionError, match=r"expected no contact, found contacts in \d+ step\(s\):\n  t = 0.07 s"):

@@ -38,6 +38,7 @@ from mjccd.bench import options
 from mjccd.bench.report import write_section
 from mjccd.quadric import matrix_to_quat
 from mjccd.scene import Scene, pairs_between
+from mjccd._command import PlainHelpFormatter
 
 WORKLOADS = ("boxing", "humanoid")
 WORLDS = [1, 4, 16, 64, 256, 1024, 4096]
@@ -380,7 +381,8 @@ def markdown(results, skipped, args, command, threads, seconds, load):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd bench batch", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench batch", description=__doc__.splitlines()[0])
     parser.add_argument("--worlds", type=int, nargs="+", default=WORLDS, metavar="B",
                         help=f"numbers of worlds (default {' '.join(map(str, WORLDS))})")
     parser.add_argument("--world-frames", type=int, default=16384,

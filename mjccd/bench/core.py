@@ -31,6 +31,7 @@ from mjccd.bench import options, peers
 from mjccd.bench.report import write_section
 from mjccd.ccd import rigid_first_contact
 from mjccd.quadric import static_status_batch
+from mjccd._command import PlainHelpFormatter
 
 EXAMPLE_CASES = options.packaged("cases.json")  # examples/cases.json in the repository
 QUICK = {"queries": 10, "repeats": 2, "static_pairs": 2000}
@@ -195,7 +196,7 @@ def _load_case(cid):
 def run(n_queries, repeats, n_static, seed, with_peers):
     rng = np.random.default_rng(seed)
     rows = []
-    sections = tqdm(total=6 if with_peers else 5, desc="bench core", unit="section")
+    sections = tqdm(total=6 if with_peers else 5, desc="bench core", unit="section", disable=None)
 
     us, counts = bench_static(n_static, repeats, rng)
     rows.append(("static status, batched (per pair)", us, f"{n_static} random pairs; {counts}"))
@@ -322,7 +323,8 @@ def markdown(rows, api_rows, peer_rows, command):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd bench core", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench core", description=__doc__.splitlines()[0])
     parser.add_argument("--queries", type=int, default=200, help="rigid queries per set (default 200)")
     parser.add_argument("--repeats", type=int, default=7, help="runs per query (default 7)")
     parser.add_argument("--static-pairs", type=int, default=200000, help="pairs in the batched static test")

@@ -42,6 +42,7 @@ from mjccd.bench.report import write_section
 from mjccd.fitting import DEFAULT_TOLERANCE
 from mjccd.mujoco import CCDMonitor, fit_model
 from mjccd.mujoco.pairs import bounded_geoms, plane_pairs
+from mjccd._command import PlainHelpFormatter
 
 DM_CONTROL = {"humanoid": ("humanoid", "run"), "humanoid_CMU": ("humanoid_CMU", "run"), "cheetah": ("cheetah", "run"),
               "walker": ("walker", "walk"), "quadruped": ("quadruped", "walk"),
@@ -376,7 +377,8 @@ def markdown(rows, skipped, args, command, seconds):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd bench fidelity", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench fidelity", description=__doc__.splitlines()[0])
     parser.add_argument("--envs", nargs="+", choices=ENVS, default=list(ENVS), metavar="ENV",
                         help=f"environments (default: all of {', '.join(ENVS)})")
     parser.add_argument("--steps", type=int, default=1000, help="MuJoCo steps per environment (default 1000)")

@@ -70,6 +70,7 @@ from mjccd.geoms import geom_first_contact
 from mjccd.geoms import kernel as kn
 from mjccd.geoms.shapes import shape_from_json
 from mjccd.geoms.solve import solve_geoms
+from mjccd._command import PlainHelpFormatter
 
 SOLIDS = ("sphere", "capsule", "cylinder", "box", "ellipsoid")
 PAIRS = ([f"{SOLIDS[i]}-{SOLIDS[j]}" for i in range(len(SOLIDS)) for j in range(i, len(SOLIDS))]
@@ -304,7 +305,7 @@ def run(cases, repeats, fcl_samples, rotating_motion="screw", progress=True):
     if have_fcl:
         import fcl
     keys = ([CA] + list(fcl_samples)) if have_fcl else []
-    for case in tqdm(cases, desc="bench geoms", unit="case", disable=not progress):
+    for case in tqdm(cases, desc="bench geoms", unit="case", disable=None if progress else True):
         if _mjccd_answer(case):
             case.us = _fastest_us(geom_first_contact, case.args, repeats)
         for key in keys:
@@ -582,7 +583,8 @@ def _load(parser, args):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd bench geoms", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench geoms", description=__doc__.splitlines()[0])
     parser.add_argument("--cases", help="cases in the case format (default: a set drawn by " + GENERATOR + ")")
     parser.add_argument("--expected", help="their reference answers (with --cases)")
     parser.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"seed of the drawn set (default "

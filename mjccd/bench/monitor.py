@@ -27,6 +27,7 @@ from mjccd.bench.report import write_section
 from mjccd.errors import InputError
 from mjccd.mujoco import CCDMonitor, geom_ellipsoids
 from mjccd.mujoco.warnings import mujoco_warnings
+from mjccd._command import PlainHelpFormatter
 
 TIMESTEP = 0.002     # s, MuJoCo's default
 LIMB_DAMPING = 0.02  # N m s / rad on every joint but the boxers' free joints
@@ -94,7 +95,7 @@ def run(model, qpos, ellipsoids, pairs, steps, repeats, speed, seed):
     rows = {"mj_step": [], "rigid": [], "affine": []}
     counts = {}
     with mujoco_warnings() as warned:
-        for _ in tqdm(range(repeats), desc="bench monitor", unit="repeat"):
+        for _ in tqdm(range(repeats), desc="bench monitor", unit="repeat", disable=None):
             data = mujoco.MjData(model)
             mujoco.mj_copyData(data, model, start)
             rows["mj_step"].append(_per_step_ms(lambda: mujoco.mj_step(model, data), steps))
@@ -151,7 +152,8 @@ def _load(parser, args):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="mjccd bench monitor", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench monitor", description=__doc__.splitlines()[0])
     parser.add_argument("--model", default=options.packaged("boxing.xml"),
                         help="MJCF model with two boxers (default: models/boxing.xml, shipped with the package)")
     parser.add_argument("--traj", default=options.packaged("boxing_traj_first150.npz"),

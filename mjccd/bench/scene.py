@@ -32,6 +32,7 @@ from mjccd.bench.report import write_section
 from mjccd.errors import InputError
 from mjccd.ccd import exact_pair
 from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, TOO_SLOW,
+from mjccd._command import PlainHelpFormatter
                          UNCERTAIN, Scene, pairs_between, read_ticks)
 
 # ---------------------------------------------------------------- boxing workload
@@ -562,7 +563,8 @@ def markdown(boxing, table3, mj, command):
 
 def main(argv=None):
     """Run the benchmark; print the markdown tables (and write them with --markdown)."""
-    parser = argparse.ArgumentParser(prog="mjccd bench scene", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="mjccd bench scene", description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=1000, help="synthetic boxing frames (default 1000)")
     parser.add_argument("--real-frames", type=int, default=0,
                         help="frames of the real boxing replay (default 0: all)")

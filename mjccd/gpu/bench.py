@@ -22,6 +22,7 @@ from numba import cuda
 
 from mjccd.gpu import kernels as kn
 from mjccd.gpu.scene import GpuScene
+from mjccd._command import PlainHelpFormatter
 
 DEFAULT_POSES = "benchmarks/gpu/boxing_poses.npz"
 
@@ -115,7 +116,8 @@ def check_against_cpu(poses, radii, pairs, worlds, steps):
 
 def main(argv=None):
     """Command line: time the batch sizes, optionally check worlds against the CPU scene, print and write JSON."""
-    parser = argparse.ArgumentParser(prog="python -m mjccd.gpu.bench", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+                                     prog="python -m mjccd.gpu.bench", description=__doc__.split("\n")[0])
     parser.add_argument("--poses", default=DEFAULT_POSES, help="pose file (default: %(default)s)")
     parser.add_argument("--worlds", default="256,1024,4096", help="batch sizes W, comma-separated")
     parser.add_argument("--steps", type=int, default=20, help="timed calls per batch size")

@@ -30,7 +30,7 @@ from mjccd.plane import Plane, plane_first_contact
 from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
-from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_report_label
 from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error, zero_quaternion_error
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
@@ -136,7 +136,7 @@ class ModelAdapter:
         self.model, self.ellipsoids, self.motion = model, ellipsoids, motion
         self.body_ids = ellipsoids.body_ids(model)
         self.pairs = checked_pairs(pairs, len(ellipsoids))
-        self.labels = [body_label(model, b) for b in range(model.nbody)]
+        self.labels = [body_report_label(model, b) for b in range(model.nbody)]
         self.kinematics = Kinematics(model)
         self.radii = ellipsoids.radii
         self.plane_pairs, self.planes, plane_rows = self._static_planes(plane_pairs)

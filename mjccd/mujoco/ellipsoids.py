@@ -190,6 +190,20 @@ def body_label(model, body_id):
     return name if name else f"#{int(body_id)}"
 
 
+def body_report_label(model, body_id):
+    """A body's name as reports give it: its name, or for an unnamed body ``#id`` and the name of its first named
+    geom, ``#4 (ball)``, so that a contact of an unnamed body says which it is."""
+    label = body_label(model, body_id)
+    if not label.startswith("#"):
+        return label
+    start, num = int(model.body_geomadr[body_id]), int(model.body_geomnum[body_id])
+    for g in range(start, start + num) if start >= 0 else ():
+        name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)
+        if name:
+            return f"{label} ({name})"
+    return label
+
+
 def load_ellipsoids(path):
     """Load an :class:`EllipsoidSet` from a ``.json`` or ``.npz`` file."""
     return EllipsoidSet.load(path)

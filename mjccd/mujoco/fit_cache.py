@@ -24,9 +24,9 @@ from mjccd._cache import user_cache_dir
 ENVIRONMENT = "MJCCD_FIT_CACHE"
 # everything fit_model reads of a model (collision_geoms, geom_shape, the labels, _resolve_bodies)
 MODEL_FIELDS = ("body_geomadr", "body_geomnum", "geom_bodyid", "geom_contype", "geom_conaffinity", "geom_type",
-                "geom_group", "geom_size", "geom_pos", "geom_quat", "geom_dataid", "mesh_vertadr", "mesh_vertnum", "mesh_vert",
-                "mesh_faceadr", "mesh_facenum", "mesh_face", "mesh_graphadr", "mesh_graph", "name_bodyadr",
-                "name_geomadr", "names")
+                "geom_group", "geom_size", "geom_pos", "geom_quat", "geom_dataid", "mesh_vertadr", "mesh_vertnum",
+                "mesh_vert", "mesh_faceadr", "mesh_facenum", "mesh_face", "mesh_graphadr", "mesh_graph",
+                "name_bodyadr", "name_geomadr", "names")
 SOURCES = ("fitting.py", "mujoco/ellipsoids.py", "mujoco/fit_cache.py", "quadric.py")  # the code that fits
 
 

@@ -39,7 +39,7 @@ from mjccd.geoms.solve import geom_collision_intervals, geom_first_contact, work
 from mjccd.motion import Rigid, Static
 from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.chains import body_path
-from mjccd.mujoco.ellipsoids import body_label, geom_label
+from mjccd.mujoco.ellipsoids import body_report_label, geom_label
 from mjccd.mujoco.motions import Kinematics, State, nonfinite_error
 from mjccd.mujoco.pairs import COLLIDED, collision_reasons, explicit_geom_pairs, pairs_with_reason
 from mjccd.mujoco.reports import COUNTER_NAMES, StepContact, StepCounters, StepReport
@@ -94,7 +94,7 @@ class GeomChecker:
         self.model = model
         if ellipsoids is not None:
             ellipsoids.body_ids(model)  # every ellipsoid on a body of this model (the error names any other)
-        self.labels = [body_label(model, b) for b in range(model.nbody)]
+        self.labels = [body_report_label(model, b) for b in range(model.nbody)]
         real, self.visual = real_geoms(model)
         rows = []  # (geom id, kind, size (3,), local pose (7,), body)
         meshes, skipped = [], []

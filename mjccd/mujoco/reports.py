@@ -38,7 +38,7 @@ class StepContact:
     Attributes:
         time: simulation time of the contact in seconds.
         fraction: the same instant as a fraction in [0, 1] of the step.
-        bodies: the two body names (``#id`` for unnamed bodies).
+        bodies: the two body names (for an unnamed body ``#id`` and its first named geom: ``#4 (ball)``).
         body_ids: the two MuJoCo body ids.
         ellipsoids: the two ellipsoid indices in the monitor's :class:`EllipsoidSet`; for a contact with a
             plane, the ellipsoid's index and -1.

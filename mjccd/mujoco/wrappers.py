@@ -1,8 +1,8 @@
 """Environment wrappers: the exact first contact of every control step, over all physics substeps.
 
 The dm-control wrappers (``CCDWrapper`` here, ``GuardedWrapper`` in :mod:`mjccd.mujoco.guard`) need a
-dm-control that works with the installed MuJoCo: dm-control 1.0.50 installs next to MuJoCo 4 (it declares
-``mujoco>=3.17`` without a cap) but cannot build a physics there.  :func:`dm_control_problem` says why
+dm-control that works with the installed MuJoCo: dm-control 1.0.50 and older install next to MuJoCo 4 (they
+declare ``mujoco>=3.17`` without a cap) but cannot build a physics there; 1.0.52 can.  :func:`dm_control_problem` says why
 not (once per process); the wrappers then raise :class:`DmControlUnavailableError`.  Nothing else in
 mjccd needs dm-control: the monitor, the guard's stepper and the Gymnasium wrapper work on MuJoCo 4.
 """
@@ -42,7 +42,8 @@ def fitted_or_checked(model, ellipsoids, per):
 
 
 class DmControlUnavailableError(RuntimeError):
-    """A dm-control wrapper was used where dm-control does not work (MuJoCo 4 with dm-control 1.0.50) or is missing."""
+    """A dm-control wrapper was used where dm-control does not work (MuJoCo 4 with dm-control 1.0.50 or older) or
+    is missing."""
 
 
 # the smallest dm-control use: a physics from MJCF, one step

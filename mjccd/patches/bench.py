@@ -19,6 +19,7 @@ import numpy as np
 
 from mjccd.bench import options
 from mjccd.files import write_text
+from mjccd._command import PlainHelpFormatter
 
 from . import _kernels as K
 from . import queries as Q
@@ -83,7 +84,7 @@ def _progress(total, desc, enabled):
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is a dependency
         return None
-    return tqdm(total=total, desc=desc, leave=False, file=sys.stderr)
+    return tqdm(total=total, desc=desc, leave=False, file=sys.stderr, disable=None)  # a terminal only
 
 
 def _fmt(x, digits=2):
@@ -329,7 +330,7 @@ def update_markdown(path, sections):
 
 def build_parser():
     p = argparse.ArgumentParser(
-        prog="mjccd bench patches",
+        formatter_class=PlainHelpFormatter, prog="mjccd bench patches",
         description="Chen et al. 2024 Table 1 (random patches) and Table 3 (VF/EE query "
                     "sets) protocols for the patch solver.")
     p.add_argument("--table", choices=["1", "3", "all"], default="all")

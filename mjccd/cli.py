@@ -134,8 +134,8 @@ def build_parser():
     suites = "\n".join(f"  {name:<9} {text}" for name, (_, text) in BENCH_SUITES.items())
     bench = sub.add_parser("bench", help="measure speed and accuracy against peers",
                            formatter_class=argparse.RawDescriptionHelpFormatter,
-                           description=f"suites:\n{suites}\n\nmjccd bench SUITE --help: the suite's options")
-    bench.add_argument("suite", choices=list(BENCH_SUITES), metavar="SUITE", help="one of: " + ", ".join(BENCH_SUITES))
+                           description=f"suites:\n{suites}\n\nmjccd bench suite --help: the suite's options")
+    bench.add_argument("suite", choices=list(BENCH_SUITES), metavar="suite", help="one of: " + ", ".join(BENCH_SUITES))
     bench.add_argument("rest", nargs=argparse.REMAINDER, help="options of the suite (--help)")
     bench.set_defaults(func=_cmd_bench)
     return parser

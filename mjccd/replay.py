@@ -825,7 +825,8 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False, disable=None)  # not a tty: none
+        bar = tqdm(total=n, desc="replay", unit="frame", file=sys.stderr, leave=False,
+                   disable=not sys.stderr.isatty())  # a terminal only
     try:
         with interrupts.deferred() as check, closing(_windows(trajectory, chunk_frames)) as windows:
             for first, qpos, time in windows:  # frames first .. stop

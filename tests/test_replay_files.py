@@ -1,10 +1,15 @@
 """``mjccd replay --out``: used folders, --force, nothing partial after an error or Ctrl-C."""
+import fcntl
 import json
 import os
+import pty
 import re
+import select
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
 
 import numpy as np
@@ -104,28 +109,41 @@ def test_sigint_ends_cleanly(tmp_path):
     traj = tmp_path / "long.npz"
     _long_trajectory(traj, 32)  # about 77,000 frames: several seconds of work
     out = tmp_path / "out"
-    err_path = tmp_path / "stderr.txt"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
-    with open(err_path, "w") as err:
-        proc = subprocess.Popen([sys.executable, "-m", "mjccd", "replay", str(MODEL), str(traj), "--out", str(out),
-                                 "--no-render"], stdout=subprocess.DEVNULL, stderr=err, cwd=tmp_path, env=env)
+    terminal, stderr = pty.openpty()  # the progress bar shows only on a terminal: stderr is one
+    fcntl.ioctl(stderr, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # 100 columns wide
+    proc = subprocess.Popen([sys.executable, "-m", "mjccd", "replay", str(MODEL), str(traj), "--out", str(out),
+                             "--no-render"], stdout=subprocess.DEVNULL, stderr=stderr, cwd=tmp_path, env=env)
+    os.close(stderr)
+    text = ""
     try:
         deadline = time.monotonic() + 60
-        while not re.search(r"\| *[1-9]\d*/\d+ ", err_path.read_text()):  # the progress bar counts frames
-            assert proc.poll() is None, err_path.read_text()
+        while not re.search(r"\| *[1-9]\d*/\d+ ", text):  # the progress bar counts frames
+            assert proc.poll() is None, text
             assert time.monotonic() < deadline, "no progress within 60 s"
-            time.sleep(0.05)
+            text += _read_some(terminal)
         proc.send_signal(signal.SIGINT)
         code = proc.wait(timeout=30)
+        text += _read_some(terminal)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    text = err_path.read_text()
+        os.close(terminal)
     assert code == 130, text
     assert text.rstrip().endswith("mjccd: interrupted"), text
     assert "Traceback" not in text and "SystemError" not in text
-    assert sorted(os.listdir(tmp_path)) == ["long.npz", "stderr.txt"]  # no output folder, no temporary file
+    assert sorted(os.listdir(tmp_path)) == ["long.npz"]  # no output folder, no temporary file
+
+
+def _read_some(fd):
+    """What a pseudo-terminal has to read within a moment ("" when nothing, or when its writer is gone)."""
+    if not select.select([fd], [], [], 0.05)[0]:
+        return ""
+    try:
+        return os.read(fd, 65536).decode(errors="replace")
+    except OSError:  # the child closed its end
+        return ""
 
 
 def test_an_interrupted_forced_run_leaves_the_earlier_run_in_place(tmp_path, monkeypatch, short_traj):

@@ -21,6 +21,7 @@ import json
 import os
 import platform
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -196,7 +197,8 @@ def _load_case(cid):
 def run(n_queries, repeats, n_static, seed, with_peers):
     rng = np.random.default_rng(seed)
     rows = []
-    sections = tqdm(total=6 if with_peers else 5, desc="bench core", unit="section", disable=None)
+    sections = tqdm(total=6 if with_peers else 5, desc="bench core", unit="section",
+                    disable=not sys.stderr.isatty())
 
     us, counts = bench_static(n_static, repeats, rng)
     rows.append(("static status, batched (per pair)", us, f"{n_static} random pairs; {counts}"))

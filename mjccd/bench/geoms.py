@@ -305,7 +305,7 @@ def run(cases, repeats, fcl_samples, rotating_motion="screw", progress=True):
     if have_fcl:
         import fcl
     keys = ([CA] + list(fcl_samples)) if have_fcl else []
-    for case in tqdm(cases, desc="bench geoms", unit="case", disable=None if progress else True):
+    for case in tqdm(cases, desc="bench geoms", unit="case", disable=not (progress and sys.stderr.isatty())):
         if _mjccd_answer(case):
             case.us = _fastest_us(geom_first_contact, case.args, repeats)
         for key in keys:

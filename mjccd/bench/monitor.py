@@ -95,7 +95,7 @@ def run(model, qpos, ellipsoids, pairs, steps, repeats, speed, seed):
     rows = {"mj_step": [], "rigid": [], "affine": []}
     counts = {}
     with mujoco_warnings() as warned:
-        for _ in tqdm(range(repeats), desc="bench monitor", unit="repeat", disable=None):
+        for _ in tqdm(range(repeats), desc="bench monitor", unit="repeat", disable=not sys.stderr.isatty()):
             data = mujoco.MjData(model)
             mujoco.mj_copyData(data, model, start)
             rows["mj_step"].append(_per_step_ms(lambda: mujoco.mj_step(model, data), steps))

@@ -32,8 +32,8 @@ from mjccd.bench.report import write_section
 from mjccd.errors import InputError
 from mjccd.ccd import exact_pair
 from mjccd.scene import (CACHED_PLANE, EXACT_FREE, EXACT_HIT, NEW_PLANE, OVERLAP_T0, PRUNED, SPHERE, TOO_SLOW,
-from mjccd._command import PlainHelpFormatter
                          UNCERTAIN, Scene, pairs_between, read_ticks)
+from mjccd._command import PlainHelpFormatter
 
 # ---------------------------------------------------------------- boxing workload
 

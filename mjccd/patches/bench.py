@@ -84,7 +84,7 @@ def _progress(total, desc, enabled):
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is a dependency
         return None
-    return tqdm(total=total, desc=desc, leave=False, file=sys.stderr, disable=None)  # a terminal only
+    return tqdm(total=total, desc=desc, leave=False, file=sys.stderr, disable=not sys.stderr.isatty())
 
 
 def _fmt(x, digits=2):

@@ -8,7 +8,7 @@ MUJOCO3 ?= mujoco>=3.17,<4
 MUJOCO4 ?= mujoco==4.0.1
 DM_CONTROL4 ?= dm-control>=1.0.52
 
-.PHONY: demo test test-mujoco4 warmup bench bench-quick tunneling clean
+.PHONY: demo test test-mujoco4 warmup docs bench bench-quick tunneling clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -46,6 +46,10 @@ test-mujoco4: $(STAMP4)
 	$(PY4) -c "import mujoco; v = mujoco.__version__; assert v.startswith('4.'), v; print('MuJoCo', v)"
 	$(PY4) -m pytest -rs $(PYTEST4)
 
+# the documentation site with its API reference from the docstrings, into site/; --strict: a warning fails it
+docs: $(STAMP)
+	$(VENV)/bin/mkdocs build --strict
+
 bench: $(STAMP)
 	$(PY) -m pip install -q -e ".[bench]"
 	$(VENV)/bin/mjccd bench core
@@ -65,5 +69,5 @@ tunneling: $(STAMP) $(MJ4)
 
 # numba's on-disk cache does not notice edits to other modules a kernel calls: clear it after editing kernels
 clean:
-	rm -rf $(VENV) .venv-mujoco4 $(VENV4) .pytest_cache .hypothesis
+	rm -rf $(VENV) .venv-mujoco4 $(VENV4) .pytest_cache .hypothesis site
 	find mjccd -name '*.nbi' -delete -o -name '*.nbc' -delete

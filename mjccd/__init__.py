@@ -7,6 +7,8 @@ from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine,
 from mjccd.plane import Plane, plane_collision_intervals, plane_first_contact, solve_plane
 from mjccd.quadric import (Ellipsoid, SeparatingPlane, contact_point, separating_plane,
                            static_status, static_status_many)
+from mjccd.scene import FrameCounters, FrameResult, PairContact, PlaneContact, Scene
+from mjccd.batch import BatchContacts, BatchScene
 
 __all__ = [
     "Affine", "Ball", "Chain", "Contact", "Ellipsoid", "Fixed", "Free", "Hinge", "LinearAffine",
@@ -14,5 +16,6 @@ __all__ = [
     "contact_point", "first_contact", "separating_plane", "solve_cases", "static_status",
     "static_status_many",
     "Plane", "plane_collision_intervals", "plane_first_contact", "solve_plane",
+    "Scene", "FrameResult", "FrameCounters", "PairContact", "PlaneContact", "BatchScene", "BatchContacts",
 ]
 __version__ = "0.1.0"

@@ -632,6 +632,8 @@ class ReplayResult:
     plane_names: dict = field(default_factory=dict)  # plane geom id -> (geom name, body name)
     mode: str = "ellipsoids"
     geoms: object = field(default=None, repr=False, compare=False)  # geoms mode: the GeomChecker
+    # the character (top-level body) of each part's body, by part (geom row or ellipsoid), for the timeline
+    characters: list = field(default_factory=list, repr=False, compare=False)
 
     @property
     def part_key(self):
@@ -642,6 +644,18 @@ class ReplayResult:
     def parts(self):
         """The names of the parts checked: geoms (geoms mode) or ellipsoids."""
         return self.geoms.labels_of_rows if self.mode == "geoms" else list(self.ellipsoids.geoms)
+
+    def on_plane(self, p):
+        """Whether pair ``p`` is a part against a static plane (the plane second)."""
+        if self.mode == "geoms":
+            return self.geoms.is_plane(int(self.pairs[p][1]))
+        return p >= len(self.pairs)
+
+    def character(self, p):
+        """The character (top-level body) of pair ``p``'s first part."""
+        first = int(self.pairs[p][0]) if self.mode == "geoms" or p < len(self.pairs) else \
+            int(self.plane_pairs[p - len(self.pairs)][0])
+        return self.characters[first]
 
     @property
     def n_checked(self):
@@ -750,30 +764,37 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
         if not len(checker.pairs):
             raise ReplayError(f"{model_path}: {checker.reason or 'no pair of geoms to check'}")
         result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, checker.pairs,
-                              geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker)
+                              geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker,
+                              characters=_characters(model, checker.body))
     else:
         on_planes = replay_planes(model, ellipsoids, planes)
         result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
                               ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
                               plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
-                                           for g in set(on_planes[:, 1].tolist())})
+                                           for g in set(on_planes[:, 1].tolist())},
+                              characters=_characters(model, ellipsoids.body_ids(model)))
         checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
-    rendered = {} if folder is not None and render else None  # qpos rows of the frames render_frames draws
+    highlights = Highlights(max_rendered) if folder is not None and render else None  # what render_frames draws
     if folder is None:
-        _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
+        _run(checker, trajectory, result, progress, chunk_frames, highlights)
         return result
     with folder:  # locked for the whole run; the earlier run's files stay until this one is complete
-        _run(checker, trajectory, result, progress, chunk_frames, rendered, max_rendered)
+        _run(checker, trajectory, result, progress, chunk_frames, highlights)
         try:
             write_reports(result, folder)
             if render:
-                render_frames(model, rendered, result, folder, max_rendered)
+                render_frames(model, highlights.chosen(), folder)
         except OutputError:
             raise
         except OSError as exc:
             raise OutputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror or _reason(exc)}") from None
     result.files = [str(folder.file_path(name)) for name in folder.written]
     return result
+
+
+def _characters(model, body_ids):
+    """The name of the top-level body (the character) of each body in ``body_ids``."""
+    return [body_label(model, model.body_rootid[int(b)]) for b in body_ids]
 
 
 def output_folder(out_dir, force=False):
@@ -793,7 +814,7 @@ def output_folder(out_dir, force=False):
     return folder
 
 
-def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max_rendered=0):
+def _run(checker, trajectory, result, progress, chunk_frames, highlights=None):
     """Kinematics and the per-frame checks, chunk by chunk of frames read from ``trajectory``; fills ``result``.
 
     ``checker`` is the :class:`~mjccd.mujoco.ModelAdapter` of the model, its ellipsoids and pairs.
@@ -801,9 +822,9 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
     KeyboardInterrupt between two chunks, never inside compiled code.  The
     checker (and its plane caches) carries over from chunk to chunk, so
     the results do not depend on ``chunk_frames`` (nor on how many frames the
-    trajectory reads at a time).  ``rendered`` (a dict) receives the qpos rows,
-    by frame, of both ends of the first ``max_rendered`` intervals with a first
-    contact: what :func:`render_frames` draws.
+    trajectory reads at a time).  ``highlights`` (a :class:`Highlights`) is
+    offered every first contact with the qpos rows of its interval's ends: what
+    :func:`render_frames` draws.
     """
     model = checker.model
     start = _time.perf_counter()
@@ -848,10 +869,9 @@ def _run(checker, trajectory, result, progress, chunk_frames, rendered=None, max
                         raise ReplayError(f"{result.trajectory}: frame {first + i}: {exc}") from None
                     for name, v in report.counters.items():
                         counters[name] += v
-                    found = len(result.contacts)
-                    _record(result, first + i, report, time[i], time[i + 1], flags[i])
-                    if rendered is not None and len(result.contacts) > found and len(rendered) < 2 * max_rendered:
-                        rendered[first + i], rendered[first + i + 1] = qpos[i].copy(), qpos[i + 1].copy()
+                    for p, contact in _record(result, first + i, report, time[i], time[i + 1], flags[i]):
+                        if highlights is not None:
+                            highlights.offer(result, p, contact, qpos[i], qpos[i + 1])
                 overlaps.add(first, flags, time)
                 t_ccd += _time.perf_counter() - start
                 if bar is not None:
@@ -933,7 +953,8 @@ class _Overlaps:
 
 def _record(result, k, report, t0, t1, flags):
     """Add the first contacts of interval k (frame times ``t0`` to ``t1``; ``report``: its
-    :class:`~mjccd.mujoco.StepReport` of every pair) to ``result``, its contact flags to ``flags``.
+    :class:`~mjccd.mujoco.StepReport` of every pair) to ``result``, its contact flags to ``flags``; returns
+    the ``(pair, contact)`` added.
 
     A pair is in contact when it touches or overlaps at the start, collides, or may collide (an
     uncertain answer); a first contact is a contact of a pair separate at the start (an uncertain one
@@ -941,6 +962,7 @@ def _record(result, k, report, t0, t1, flags):
     and its plane geom's.
     """
     dt = t1 - t0
+    added = []
     for c in sorted(report.contacts, key=lambda c: (c.fraction, c.pair)):  # in time order, then pair order
         flags[c.pair] = True
         if c.status_at_start != "separate":
@@ -956,6 +978,8 @@ def _record(result, k, report, t0, t1, flags):
         if c.certainty != "certified":
             contact["certainty"] = c.certainty
         result.contacts.append(contact)
+        added.append((c.pair, contact))
+    return added
 
 
 def warm_up(motion="rigid"):
@@ -1128,16 +1152,23 @@ def plot_timeline(result, target):
     hits_of = {}
     for c in result.contacts:
         hits_of.setdefault(tuple(c[result.part_key]), _ThinTimes(gap)).add(c["time"])
-    pair_runs = list(result.pair_runs())
-    labels = []
-    fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(pair_runs) + 1.2)))
-    for row, (p, runs) in enumerate(pair_runs):
+    rows = {}  # a row per pair in contact, but one per character for all its parts against one plane
+    for p, runs in result.pair_runs():
         parts, _, names = result.names(p)
-        labels.append(f"{names[0]} / {names[1]}")
-        bars = _thin_runs(list(zip(runs["start"].tolist(), runs["end"].tolist())), gap)
+        key, label = ((result.character(p), parts[1]), f"{result.character(p)} (any part) / {parts[1]}") \
+            if result.on_plane(p) else (p, f"{names[0]} / {names[1]}")
+        row = rows.setdefault(key, (label, [], _ThinTimes(gap)))
+        row[1].extend(_thin_runs(list(zip(runs["start"].tolist(), runs["end"].tolist())), gap))
+        for x in (hits_of[tuple(parts)].kept if tuple(parts) in hits_of else ()):
+            row[2].kept.append(x)
+    labels = []
+    fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(rows) + 1.2)))
+    for row, (label, runs, hits) in enumerate(rows.values()):
+        labels.append(label)
+        bars = _thin_runs(_joined(sorted(runs)), gap)
         ax.broken_barh([(a, b - a) for a, b in bars], (row - 0.35, 0.7), facecolors="tab:blue", alpha=0.5)
-        hits = hits_of[tuple(parts)].kept if tuple(parts) in hits_of else []
-        ax.plot(hits, [row] * len(hits), "o", color="tab:red", ms=4)
+        times = _thinned_times(sorted(hits.kept), gap)
+        ax.plot(times, [row] * len(times), "o", color="tab:red", ms=4)
     ax.set_yticks(range(len(labels)))
     ax.set_yticklabels(labels, fontsize=7)
     ax.set_xlim(t0, t1)
@@ -1149,6 +1180,25 @@ def plot_timeline(result, target):
         fig.savefig(target, dpi=110, format="png")
     finally:
         plt.close(fig)
+
+
+def _joined(runs):
+    """Time runs ``(start, end)`` sorted by start, overlapping ones joined."""
+    joined = runs[:1]
+    for a, b in runs[1:]:
+        if a <= joined[-1][1]:
+            joined[-1] = (joined[-1][0], max(b, joined[-1][1]))
+        else:
+            joined.append((a, b))
+    return joined
+
+
+def _thinned_times(times, gap):
+    """Sorted times, thinned as :class:`_ThinTimes` thins them."""
+    thin = _ThinTimes(gap)
+    for x in times:
+        thin.add(x)
+    return thin.kept
 
 
 def _thin_runs(runs, gap):
@@ -1183,15 +1233,60 @@ class _ThinTimes:
             self.kept.append(x)
 
 
-def render_frames(model, qpos, result, folder, count=4):
-    """PNG frames at the first few first contacts in ``folder``, colliding ellipsoids in red; none without OpenGL.
+class Highlights:
+    """The first contacts worth a picture, chosen as they come: the first of each pair of bodies meeting between
+    characters (or within one), then the first of each character against a plane (a foot strike), ``count`` in
+    all, with the qpos rows of both ends of their frame interval."""
 
-    ``qpos``: the (T, nq) trajectory, or a dict of the rows needed by frame (what :func:`replay` keeps).
-    """
-    if not result.contacts or count <= 0:
-        return
+    def __init__(self, count):
+        self.count = count
+        self.between, self.on_planes = {}, {}  # category -> (contact, qpos0, qpos1), first come first kept
+
+    def offer(self, result, p, contact, qpos0, qpos1):
+        if result.on_plane(p):
+            kept, key = self.on_planes, (result.character(p), contact[result.part_key][1])
+        else:
+            kept, key = self.between, frozenset(contact["bodies"])
+        if key not in kept and len(kept) < self.count:
+            kept[key] = (contact, qpos0.copy(), qpos1.copy())
+
+    def chosen(self):
+        """Up to ``count`` of them, in time order: contacts between bodies first, at least one on a plane."""
+        between, on_planes = list(self.between.values()), list(self.on_planes.values())
+        floor = min(len(on_planes), max(1, self.count - len(between)))
+        picked = between[:self.count - floor] + on_planes[:floor]
+        return sorted(picked, key=lambda item: item[0]["time"])
+
+
+def _framing_camera(model, data):
+    """A free camera from the side framing every moving body (both boxers, not the floor's extent)."""
     import mujoco
-    from matplotlib.image import imsave
+
+    moving = [b for b in range(1, model.nbody) if model.body_weldid[b] != 0] or list(range(model.nbody))
+    low, high = data.xpos[moving].min(axis=0), data.xpos[moving].max(axis=0)
+    cam = mujoco.MjvCamera()
+    cam.lookat[:] = 0.5 * (low + high)
+    cam.distance = 1.6 * float(np.max(high - low)) + 0.8
+    cam.azimuth, cam.elevation = 90.0, -8.0
+    return cam
+
+
+def caption(contact):
+    """A frame's caption: frame, time and the pair that touched."""
+    a, b = contact["labels"]
+    return f"frame {contact['frame']}, t = {contact['time']:.3f} s: {a} / {b} ({contact['toi']:.2f} of the interval)"
+
+
+def render_frames(model, highlights, folder):
+    """A captioned PNG per highlight (:meth:`Highlights.chosen`) in ``folder``, the touching geoms (or
+    ellipsoids) in red and the camera framing every character; none without OpenGL (one line says so)."""
+    if not highlights:
+        return
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import mujoco
 
     from mjccd.mujoco.render import open_renderer, scene_option
 
@@ -1200,33 +1295,28 @@ def render_frames(model, qpos, result, folder, count=4):
         return
     data = mujoco.MjData(model)
     opt = scene_option()
-    cam = mujoco.MjvCamera()
-    picked, of_frame = [], {}  # the first contact of each of the first ``count`` frames with any; their contacts
-    for c in result.contacts:  # in frame order
-        if c["frame"] not in of_frame:
-            if len(picked) == count:
-                break
-            picked.append(c)
-            of_frame[c["frame"]] = []
-        of_frame[c["frame"]].append(c)
     rgba = model.geom_rgba.copy()
-    name_to_geom = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) if not n.startswith("#") else int(n[1:])
-                    for n in result.parts}
     try:
-        for c in picked:
-            k = c["frame"]
-            red = {name_to_geom[n] for cc in of_frame[k] for n in cc[result.part_key]
-                   if n in name_to_geom and model.geom_type[name_to_geom[n]] != mujoco.mjtGeom.mjGEOM_PLANE}
+        for contact, qpos0, qpos1 in highlights:
             model.geom_rgba[:] = rgba
-            for g in red:
-                model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
-            data.qpos[:] = qpos[k + 1] if c["toi"] > 0.5 else qpos[k]
+            for name in contact.get("geoms", contact.get("ellipsoids", ())):
+                g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) if not name.startswith("#") else \
+                    int(name[1:])
+                if g >= 0 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
+                    model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
+            data.qpos[:] = qpos1 if contact["toi"] > 0.5 else qpos0
             mujoco.mj_forward(model, data)
-            cam.lookat[:] = c["point"]
-            cam.distance, cam.azimuth, cam.elevation = 2.5, 60.0, -15.0
-            renderer.update_scene(data, cam, scene_option=opt)
-            with folder.open(f"frame_{k:05d}.png", "wb") as fh:
-                imsave(fh, renderer.render(), format="png")
+            renderer.update_scene(data, _framing_camera(model, data), scene_option=opt)
+            fig, ax = plt.subplots(figsize=(6.4, 5.1))
+            ax.imshow(renderer.render())
+            ax.set_axis_off()
+            ax.set_title(caption(contact), fontsize=8)
+            fig.tight_layout()
+            try:
+                with folder.open(f"frame_{contact['frame']:05d}.png", "wb") as fh:
+                    fig.savefig(fh, dpi=100, format="png")
+            finally:
+                plt.close(fig)
     finally:
         model.geom_rgba[:] = rgba
         renderer.close()

@@ -8,6 +8,8 @@ as ``text``, not ``python``.
 import os
 import pathlib
 import re
+import subprocess
+import sys
 import warnings
 
 import matplotlib
@@ -49,3 +51,15 @@ def test_no_python_fence_hides_from_the_runner():
             assert reason is None or reason in ALLOWED, f"{path.name}:{line}: not run for {reason!r}"
         assert text.count("```python") == len(_blocks(path)), path.name
         assert "```py\n" not in text and "```Python" not in text, path.name
+
+
+def test_the_site_and_its_api_reference_build_strictly(tmp_path):
+    """``make docs``: mkdocs with the reference from the docstrings (mkdocstrings); any warning (a page missing
+    from the nav, a broken reference, an object that does not import) fails the build."""
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    reference = (tmp_path / "site" / "api" / "mujoco" / "index.html").read_text()
+    assert "CCDMonitor" in reference and "fit_model" in reference
+    index = (tmp_path / "site" / "index.html").read_text()
+    assert 'href="mujoco/"' in index  # the first screen links the page on wrapped environments

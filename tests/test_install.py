@@ -385,3 +385,70 @@ def test_warmup_command_lists_its_jobs_and_refuses_unknown_ones():
     done = subprocess.run([sys.executable, "-m", "mjccd", "warmup", "nonsense"], capture_output=True, text=True,
                           cwd=ROOT, timeout=120)
     assert done.returncode == 2 and "unknown job 'nonsense'" in done.stderr
+
+
+# ---------------------------------------------------------------- a fresh install on other Pythons
+
+FRESH_PYTHONS = ("3.10", "3.13")  # the oldest supported, and the newest, where dm-control is left out
+FRESH_CHECK = r'''
+import mujoco
+import numpy as np
+
+import mjccd
+from mjccd.mujoco import CCDMonitor, fit_model
+from mjccd.scene import Scene
+
+a, b = mjccd.Ellipsoid([0.3, 0.2, 0.1]), mjccd.Ellipsoid([0.2, 0.2, 0.4])   # the README's quick start
+contact = mjccd.first_contact(a, mjccd.Rigid([-1, 0, 0], [1, 0, 0, 0], [1, 0, 0], [0.7071, 0, 0.7071, 0]),
+                              b, mjccd.Static([0, 0.1, 0], [1, 0, 0, 0]))
+print("quick start", contact.certainty, round(contact.time, 6))
+scene = Scene([[0.1, 0.1, 0.1]] * 2)
+start = np.array([[0, 0, 0, 1, 0, 0, 0], [1, 0, 0, 1, 0, 0, 0.0]])
+end = start.copy()
+end[0, 0] = 0.95
+print("scene", round(scene.step(start, end).first.time, 6))
+model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom type="plane" size="1 1 .1"/>'
+                                       '<body pos="0 0 .5"><freejoint/><geom size=".1"/></body></worldbody></mujoco>')
+data = mujoco.MjData(model)
+monitor = CCDMonitor(model, data, fit_model(model))
+landed = next(c for c in iter(monitor.step, "never") if c is not None)
+print("monitor", landed.bodies, landed.certainty)
+'''
+
+
+def _python(version):
+    """An interpreter of ``version`` ("3.13"): on the PATH, or one pyenv installed; None when there is none."""
+    candidates = [shutil.which(f"python{version}")]
+    pyenv = os.environ.get("PYENV_ROOT") or os.path.expanduser("~/.pyenv")
+    candidates += sorted(Path(pyenv, "versions").glob(f"{version}.*/bin/python{version}"), reverse=True)
+    for candidate in filter(None, candidates):
+        done = subprocess.run([str(candidate), "--version"], capture_output=True, text=True)
+        if done.returncode == 0 and done.stdout.startswith(f"Python {version}."):
+            return candidate
+    return None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("version", FRESH_PYTHONS)
+def test_the_wheel_runs_on_a_fresh_python(installed, version, tmp_path):
+    """pip install of the wheel, with its dependencies from the index, into a fresh environment of another
+    Python: the quick start, a Scene.step, a monitored MuJoCo step and ``mjccd replay`` of the bundled clip run
+    (Python 3.13 once crashed here: scipy, which the kernels' linear algebra needs, was not declared)."""
+    import mujoco
+
+    if mujoco.__version__.startswith("4."):
+        pytest.skip("run once, next to MuJoCo 3: the fresh environment installs its own MuJoCo either way")
+    interpreter = _python(version)
+    if interpreter is None:
+        pytest.skip(f"no Python {version} on this machine")
+    env_dir = tmp_path / "env"
+    _run([interpreter, "-m", "venv", env_dir], cwd=tmp_path, env=_clean_env())
+    python, env = env_dir / "bin" / "python", dict(_clean_env(), MJCCD_FIT_CACHE="off")
+    _run([python, "-m", "pip", "install", "-q", installed.wheel], cwd=tmp_path, env=env, timeout=900)
+    checked = _run([python, "-c", FRESH_CHECK], cwd=tmp_path, env=env, timeout=1200)
+    assert "quick start certified 0.27" in checked and "scene 0.842105" in checked, checked
+    assert checked.splitlines()[-1].startswith("monitor (") and checked.endswith("certified\n"), checked
+    replayed = _run([env_dir / "bin" / "mjccd", "replay", ROOT / "models" / "boxing.xml",
+                     ROOT / "data" / "boxing_traj.npz", "--no-render", "--rows", "3"], cwd=tmp_path, env=env,
+                    timeout=1200)
+    assert "first contacts: 118;" in replayed, replayed

@@ -8,7 +8,7 @@ import zipfile
 import numpy as np
 import pytest
 
-from mjccd import npz_stream, replay
+from mjccd import files, npz_stream, replay
 from mjccd.mujoco import ModelAdapter
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -246,20 +246,63 @@ def test_plot_thins_only_long_rows():
     assert many.kept == greedy and len(greedy) == replay.PLOT_BARS   # as thinning the whole row at once
 
 
-def test_rendered_frames_get_their_rows(tmp_path, monkeypatch):
-    """render_frames is handed the qpos rows of the frames it draws (the replay keeps no whole qpos)."""
+def test_rendered_frames_are_highlights_with_their_rows(tmp_path, monkeypatch):
+    """render_frames is handed the highlights: the first contact of each body pair between the boxers, then a
+    foot strike, each with the qpos rows of its interval (the replay keeps no whole qpos); drawn, each frame
+    is captioned with its frame, time and pair."""
     qpos, time = _tiled(3000)
     path = tmp_path / "t.npz"
     np.savez(path, qpos=qpos, time=time)
     handed = {}
 
-    def record(model, rows, result, folder, count):
-        handed.update(rows=rows, contacts=result.contacts, count=count)
+    def record(model, highlights, folder):
+        handed["highlights"] = highlights
 
     monkeypatch.setattr(replay, "render_frames", record)
-    replay.replay(MODEL, path, "rigid", tmp_path / "out", progress=False, read_frames=700, chunk_frames=50)
-    frames = list(dict.fromkeys(c["frame"] for c in handed["contacts"]))[:handed["count"]]
-    assert len(frames) == handed["count"] == 4
-    for k in frames:
-        np.testing.assert_array_equal(handed["rows"][k], qpos[k])
-        np.testing.assert_array_equal(handed["rows"][k + 1], qpos[k + 1])
+    result = replay.replay(MODEL, path, "rigid", tmp_path / "out", progress=False, read_frames=700, chunk_frames=50)
+    chosen = handed["highlights"]
+    assert len(chosen) == 4 and [c["time"] for c, _, _ in chosen] == sorted(c["time"] for c, _, _ in chosen)
+    on_floor = [c for c, _, _ in chosen if c["bodies"][1] == "world"]
+    between = [frozenset(c["bodies"]) for c, _, _ in chosen if c["bodies"][1] != "world"]
+    assert len(on_floor) == 1 and len(set(between)) == len(between) == 3
+    firsts = {}
+    for c in result.contacts:
+        firsts.setdefault(frozenset(c["bodies"]), c)
+    assert all(firsts[frozenset(c["bodies"])] == c for c, _, _ in chosen if c["bodies"][1] != "world")
+    for c, q0, q1 in chosen:
+        np.testing.assert_array_equal(q0, qpos[c["frame"]])
+        np.testing.assert_array_equal(q1, qpos[c["frame"] + 1])
+    text = replay.caption(chosen[0][0])
+    assert text.startswith(f"frame {chosen[0][0]['frame']}, t = ") and " / " in text
+
+
+def test_frames_are_drawn_with_their_captions(tmp_path, monkeypatch, boxing_model):
+    """Without OpenGL here, a stand-in renderer: each highlight becomes one PNG, and the touching geoms are red
+    while it is drawn (the model's colours restored after)."""
+    from mjccd.mujoco import render
+
+    seen = []
+
+    class Canvas:
+        def update_scene(self, data, camera, scene_option):
+            seen.append((boxing_model.geom_rgba.copy(), camera.distance))
+
+        def render(self):
+            return np.zeros((48, 64, 3), dtype=np.uint8)
+
+        def close(self):
+            pass
+
+    monkeypatch.setattr(render, "open_renderer", lambda model: Canvas())
+    before = boxing_model.geom_rgba.copy()
+    contact = {"frame": 3, "time": 0.025, "toi": 0.2, "geoms": ["a_RightForeArm_limb0", "b_LeftArm_limb0"],
+               "labels": ["a_RightForeArm", "b_LeftArm"], "bodies": ["a_RightForeArm", "b_LeftArm"]}
+    folder = files.OutputFolder(tmp_path / "frames", "replay", patterns=replay.OUTPUT_PATTERNS)
+    with folder:
+        replay.render_frames(boxing_model, [(contact, boxing_model.qpos0, boxing_model.qpos0)], folder)
+    assert (tmp_path / "frames" / "frame_00003.png").read_bytes()[:4] == b"\x89PNG"
+    colours, distance = seen[0]
+    red = [g for g in range(boxing_model.ngeom) if tuple(colours[g]) == pytest.approx((0.9, 0.1, 0.1, 0.8))]
+    assert sorted(boxing_model.geom(g).name for g in red) == ["a_RightForeArm_limb0", "b_LeftArm_limb0"]
+    assert 1.0 < distance < 10.0
+    np.testing.assert_array_equal(boxing_model.geom_rgba, before)

@@ -160,6 +160,10 @@ class GeomChecker:
             raise InputError(f"min_motion: expected {len(self.pairs)} finite values >= 0, got shape {values.shape}")
         self.min_motion = values
 
+    def is_plane(self, row):
+        """Whether geom row ``row`` is a static plane."""
+        return bool(self.kinds[row] == sy.PLANE)
+
     @staticmethod
     def _mesh_bounds(model, ellipsoids, g):
         """The fitted ellipsoids that stand for mesh geom g: (radii, pose in its body) of those naming it, else

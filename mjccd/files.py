@@ -193,7 +193,8 @@ class OutputFolder:
         """A file of this run, written atomically into the staging folder (see :func:`atomic_open`)."""
         with atomic_open(self._staging / name, mode, **kwargs) as fh:
             yield fh
-        self.written.append(name)
+        if name not in self.written:  # written again: the last one stands
+            self.written.append(name)
 
     def file_path(self, name):
         """Where ``name`` is: in the staging folder while the run writes, in the folder once it is done."""

@@ -783,7 +783,7 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
         try:
             write_reports(result, folder)
             if render:
-                render_frames(model, highlights.chosen(), folder)
+                render_frames(model, highlights.chosen(), folder, bounds=mode != "geoms")
         except OutputError:
             raise
         except OSError as exc:
@@ -1247,7 +1247,8 @@ class Highlights:
             kept, key = self.on_planes, (result.character(p), contact[result.part_key][1])
         else:
             kept, key = self.between, frozenset(contact["bodies"])
-        if key not in kept and len(kept) < self.count:
+        frames = {c["frame"] for c, _, _ in (*self.between.values(), *self.on_planes.values())}
+        if key not in kept and len(kept) < self.count and contact["frame"] not in frames:  # a picture a frame
             kept[key] = (contact, qpos0.copy(), qpos1.copy())
 
     def chosen(self):
@@ -1277,9 +1278,10 @@ def caption(contact):
     return f"frame {contact['frame']}, t = {contact['time']:.3f} s: {a} / {b} ({contact['toi']:.2f} of the interval)"
 
 
-def render_frames(model, highlights, folder):
+def render_frames(model, highlights, folder, bounds=True):
     """A captioned PNG per highlight (:meth:`Highlights.chosen`) in ``folder``, the touching geoms (or
-    ellipsoids) in red and the camera framing every character; none without OpenGL (one line says so)."""
+    ellipsoids) in red and the camera framing every character; none without OpenGL (one line says so).
+    ``bounds``: show the bounding ellipsoids (geom group 5) too."""
     if not highlights:
         return
     import matplotlib
@@ -1294,7 +1296,7 @@ def render_frames(model, highlights, folder):
     if renderer is None:
         return
     data = mujoco.MjData(model)
-    opt = scene_option()
+    opt = scene_option() if bounds else mujoco.MjvOption()
     rgba = model.geom_rgba.copy()
     try:
         for contact, qpos0, qpos1 in highlights:

@@ -383,3 +383,25 @@ def test_chain_replay_with_floors_is_the_same_with_and_without_the_plane_filter(
     assert slow.counters["solved_exactly"] > fast.counters["solved_exactly"] + 1000 and decided
     assert (tmp_path / "fast" / "contacts.csv").read_bytes() == (tmp_path / "slow" / "contacts.csv").read_bytes()
     assert len(fast.contacts) > 10
+
+
+def test_the_demo_reports_real_contacts_only_and_keeps_the_foot_strikes():
+    """``make demo``'s replay: at every first contact's instant the two geoms are within 1 cm by MuJoCo's own
+    ``mj_geomDistance`` (the state there interpolated by MuJoCo: ``mj_differentiatePos``/``mj_integratePos``
+    between the frames, not by mjccd's motion), and feet still strike the floor; no shin, thigh or hip does."""
+    model = mujoco.MjModel.from_xml_path(str(MODEL))
+    with np.load(TRAJ) as data:
+        qpos = data["qpos"]
+    result = replay.replay(MODEL, TRAJ, progress=False, render=False)
+    data, velocity, gaps = mujoco.MjData(model), np.zeros(model.nv), []
+    for c in result.contacts:
+        k = c["frame"]
+        mujoco.mj_differentiatePos(model, velocity, 1.0, qpos[k], qpos[k + 1])
+        data.qpos[:] = qpos[k]
+        mujoco.mj_integratePos(model, data.qpos, velocity, c["toi"])
+        mujoco.mj_kinematics(model, data)
+        g1, g2 = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) for name in c["geoms"])
+        gaps.append(mujoco.mj_geomDistance(model, data, g1, g2, 0.5, None))
+    assert len(gaps) > 100 and max(abs(g) for g in gaps) <= 0.01
+    on_floor = [c["bodies"][0] for c in result.contacts if c["bodies"][1] == "world"]
+    assert on_floor and all(("Foot" in b or "Toe" in b) for b in on_floor)

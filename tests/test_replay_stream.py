@@ -255,7 +255,7 @@ def test_rendered_frames_are_highlights_with_their_rows(tmp_path, monkeypatch):
     np.savez(path, qpos=qpos, time=time)
     handed = {}
 
-    def record(model, highlights, folder):
+    def record(model, highlights, folder, bounds):
         handed["highlights"] = highlights
 
     monkeypatch.setattr(replay, "render_frames", record)

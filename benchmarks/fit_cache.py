@@ -7,7 +7,8 @@ loaded by a first untimed run): ``fit_model(model)`` (the default 1 cm fit) with
 (cold: the fit itself) and again with the entry the cold run left (warm: a file read), and the
 construction of a dm-control wrapper with no arguments, warm.  Medians over
 ``--repeat`` processes; the wrapper's time (:class:`~mjccd.dm_control.CCDWrapper` of the loaded environment,
-its fit read from the cache) includes everything it sets up.  Models: dm-control's humanoid, cheetah, hopper, humanoid_CMU and dog, and the
+its fit read from the cache) includes everything it sets up.  Models: dm-control's humanoid, cheetah, hopper,
+humanoid_CMU and dog, and the
 Kinova arm of ``models/arm_obstacle.xml`` on its own meshes (``include_visual=True``: the arm's meshes and
 the obstacle, not the bounds the file already has).
 """
@@ -61,7 +62,8 @@ def main(argv=None):
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--models", nargs="+", choices=MODELS, default=list(MODELS))
     args = parser.parse_args(argv)
-    rows = ["| model | ellipsoids | cold fit [ms] | warm fit [ms] | warm CCDWrapper(env) [ms] |", "|---|---:|---:|---:|---:|"]
+    rows = ["| model | ellipsoids | cold fit [ms] | warm fit [ms] | warm CCDWrapper(env) [ms] |",
+            "|---|---:|---:|---:|---:|"]
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.models:
             cold, warm, monitor = [], [], []

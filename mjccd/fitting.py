@@ -574,8 +574,8 @@ def cover_shape(shape, tolerance, *, max_ellipsoids=MAX_ELLIPSOIDS):
     cover = {"capsule": _capsule_cover, "cylinder": _cylinder_cover, "box": _box_cover,
              "mesh": _mesh_cover}[shape.kind](shape, t * _DESIGN, int(max_ellipsoids))
     if cover is None:
-        raise TooManyEllipsoids(f"tolerance: this {shape.kind} needs more than {int(max_ellipsoids)} ellipsoids to stay "
-                         f"within {t:g} of it; raise the tolerance or max_ellipsoids")
+        raise TooManyEllipsoids(f"tolerance: this {shape.kind} needs more than {int(max_ellipsoids)} ellipsoids to "
+                                f"stay within {t:g} of it; raise the tolerance or max_ellipsoids")
     return cover
 
 

@@ -3,8 +3,9 @@
 ``dm_control`` marks a test that builds a dm-control environment.  dm-control 1.0.50 and older install
 next to MuJoCo 4 (they declare ``mujoco>=3.17`` without a cap) but cannot build a physics there, so such
 tests skip with the reason, naming both versions, wherever the import and a minimal use (a physics from
-MJCF, stepped once) fail (``make test-mujoco4`` installs dm-control 1.0.52, which runs).  ``mujoco`` marks the files that cover the MuJoCo layer (core, monitor, guard,
-replay, testing helpers): ``pytest -m mujoco`` runs them alone (``make test-mujoco4 PYTEST4="-m mujoco"``).
+MJCF, stepped once) fail (``make test-mujoco4`` installs dm-control 1.0.52, which runs).  ``mujoco`` marks
+the files that cover the MuJoCo layer (core, monitor, guard, replay, testing helpers): ``pytest -m mujoco``
+runs them alone (``make test-mujoco4 PYTEST4="-m mujoco"``).
 """
 import os
 import shutil
@@ -34,7 +35,8 @@ def pytest_configure(config):
     _FIT_CACHE = tempfile.mkdtemp(prefix="mjccd-test-fits-")
     os.environ["MJCCD_FIT_CACHE"] = _FIT_CACHE  # subprocesses of the tests inherit it
     config.addinivalue_line("markers", "dm_control: builds a dm-control environment; skipped where dm-control "
-                                       "does not work with the installed MuJoCo (MuJoCo 4 with dm-control 1.0.50 or older)")
+                                       "does not work with the installed MuJoCo (MuJoCo 4 with dm-control 1.0.50 "
+                                       "or older)")
     config.addinivalue_line("markers", "mujoco: the MuJoCo-facing files (fit, monitor, guard, replay, scene, "
                                        "testing, examples), set in tests/conftest.py")
 

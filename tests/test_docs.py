@@ -5,7 +5,6 @@ A block may be left out only for what this suite cannot have, said right above i
 ``<!-- not run: REASON -->`` with REASON one of :data:`ALLOWED`; a block that only shows a signature is fenced
 as ``text``, not ``python``.
 """
-import os
 import pathlib
 import re
 import subprocess

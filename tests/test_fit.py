@@ -368,7 +368,8 @@ def test_humanoid_limbs_at_the_default_tolerance():
     model = mujoco.MjModel.from_xml_path(str(_suite("humanoid")))
     tight = {r.body: r for r in fit_report(model, fit_model(model, tolerance=DEFAULT_TOLERANCE),
                                            surface_samples=500, volume_samples=4096)}
-    loose = {r.body: r for r in fit_report(model, fit_model(model, tolerance=None), surface_samples=500, volume_samples=4096)}
+    loose = {r.body: r for r in fit_report(model, fit_model(model, tolerance=None), surface_samples=500,
+                                           volume_samples=4096)}
     for limb in ("right_thigh", "left_shin", "right_upper_arm", "left_lower_arm"):
         assert tight[limb].overshoot <= DEFAULT_TOLERANCE and tight[limb].ellipsoids <= 3
         assert loose[limb].ellipsoids == 1 and loose[limb].overshoot > 0.07

@@ -13,8 +13,8 @@ from mjccd.mujoco import ellipsoids as ellipsoids_module
 from mjccd.mujoco import fit_cache, fit_model
 
 XML = """<mujoco><worldbody>
-  <body name="arm"><freejoint/><geom type="capsule" size="0.05 0.3"/><geom type="box" size="0.1 0.1 0.02" pos="0 0 0.4"/>
-  </body>
+  <body name="arm"><freejoint/><geom type="capsule" size="0.05 0.3"/>
+    <geom type="box" size="0.1 0.1 0.02" pos="0 0 0.4"/></body>
   <body name="ball" pos="1 0 0"><freejoint/><geom type="sphere" size="0.1"/></body>
 </worldbody></mujoco>"""
 

@@ -2,9 +2,10 @@
 
 The dm-control wrappers (``CCDWrapper`` here, ``GuardedWrapper`` in :mod:`mjccd.mujoco.guard`) need a
 dm-control that works with the installed MuJoCo: dm-control 1.0.50 and older install next to MuJoCo 4 (they
-declare ``mujoco>=3.17`` without a cap) but cannot build a physics there; 1.0.52 can.  :func:`dm_control_problem` says why
-not (once per process); the wrappers then raise :class:`DmControlUnavailableError`.  Nothing else in
-mjccd needs dm-control: the monitor, the guard's stepper and the Gymnasium wrapper work on MuJoCo 4.
+declare ``mujoco>=3.17`` without a cap) but cannot build a physics there; 1.0.52 can.
+:func:`dm_control_problem` says why not (once per process); the wrappers then raise
+:class:`DmControlUnavailableError`.  Nothing else in mjccd needs dm-control: the monitor, the guard's
+stepper and the Gymnasium wrapper work on MuJoCo 4.
 """
 import collections
 import functools

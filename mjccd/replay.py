@@ -632,8 +632,10 @@ class ReplayResult:
     plane_names: dict = field(default_factory=dict)  # plane geom id -> (geom name, body name)
     mode: str = "ellipsoids"
     geoms: object = field(default=None, repr=False, compare=False)  # geoms mode: the GeomChecker
-    # the character (top-level body) of each part's body, by part (geom row or ellipsoid), for the timeline
+    # the character (top-level body) and the rigid part (the body its body is welded to) of each part's body, by
+    # part (geom row or ellipsoid): the timeline's rows and the rendered highlights group by them
     characters: list = field(default_factory=list, repr=False, compare=False)
+    rigid_parts: list = field(default_factory=list, repr=False, compare=False)
 
     @property
     def part_key(self):
@@ -651,11 +653,19 @@ class ReplayResult:
             return self.geoms.is_plane(int(self.pairs[p][1]))
         return p >= len(self.pairs)
 
+    def _first_part(self, p):
+        return int(self.pairs[p][0]) if self.mode == "geoms" or p < len(self.pairs) else \
+            int(self.plane_pairs[p - len(self.pairs)][0])
+
     def character(self, p):
         """The character (top-level body) of pair ``p``'s first part."""
-        first = int(self.pairs[p][0]) if self.mode == "geoms" or p < len(self.pairs) else \
-            int(self.plane_pairs[p - len(self.pairs)][0])
-        return self.characters[first]
+        return self.characters[self._first_part(p)]
+
+    def rigid_pair(self, p):
+        """The rigid parts (each the body its part's body is welded to: a hand for the fingers fixed to it) of a
+        pair ``p`` between two parts (not a plane pair)."""
+        a, b = (int(x) for x in self.pairs[p])
+        return self.rigid_parts[a], self.rigid_parts[b]
 
     @property
     def n_checked(self):
@@ -765,14 +775,16 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
             raise ReplayError(f"{model_path}: {checker.reason or 'no pair of geoms to check'}")
         result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, checker.pairs,
                               geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker,
-                              characters=_characters(model, checker.body))
+                              characters=_characters(model, checker.body),
+                              rigid_parts=_rigid_parts(model, checker.body))
     else:
         on_planes = replay_planes(model, ellipsoids, planes)
         result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
                               ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
                               plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
                                            for g in set(on_planes[:, 1].tolist())},
-                              characters=_characters(model, ellipsoids.body_ids(model)))
+                              characters=_characters(model, ellipsoids.body_ids(model)),
+                              rigid_parts=_rigid_parts(model, ellipsoids.body_ids(model)))
         checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
     highlights = Highlights(max_rendered) if folder is not None and render else None  # what render_frames draws
     if folder is None:
@@ -795,6 +807,12 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
 def _characters(model, body_ids):
     """The name of the top-level body (the character) of each body in ``body_ids``."""
     return [body_label(model, model.body_rootid[int(b)]) for b in body_ids]
+
+
+def _rigid_parts(model, body_ids):
+    """The name of the body each moving body in ``body_ids`` is welded to (itself when it has a joint); a static
+    body's own (every static body is welded to the world)."""
+    return [body_label(model, model.body_weldid[int(b)] or int(b)) for b in body_ids]
 
 
 def output_folder(out_dir, force=False):
@@ -1155,8 +1173,12 @@ def plot_timeline(result, target):
     rows = {}  # a row per pair in contact, but one per character for all its parts against one plane
     for p, runs in result.pair_runs():
         parts, _, names = result.names(p)
-        key, label = ((result.character(p), parts[1]), f"{result.character(p)} (any part) / {parts[1]}") \
-            if result.on_plane(p) else (p, f"{names[0]} / {names[1]}")
+        if result.on_plane(p):
+            key = (result.character(p), parts[1])
+            label = f"{key[0]} (any part) / {key[1]}"
+        else:  # one row per pair of rigid parts (the fingers fixed to a hand are the hand)
+            key = result.rigid_pair(p)
+            label = f"{key[0]} / {key[1]}"
         row = rows.setdefault(key, (label, [], _ThinTimes(gap)))
         row[1].extend(_thin_runs(list(zip(runs["start"].tolist(), runs["end"].tolist())), gap))
         for x in (hits_of[tuple(parts)].kept if tuple(parts) in hits_of else ()):
@@ -1234,9 +1256,9 @@ class _ThinTimes:
 
 
 class Highlights:
-    """The first contacts worth a picture, chosen as they come: the first of each pair of bodies meeting between
-    characters (or within one), then the first of each character against a plane (a foot strike), ``count`` in
-    all, with the qpos rows of both ends of their frame interval."""
+    """The first contacts worth a picture, chosen as they come: the first of each pair of rigid parts meeting
+    between characters (or within one), then the first of each character against a plane (a foot strike),
+    ``count`` in all, one a frame, with the qpos rows of both ends of their frame interval."""
 
     def __init__(self, count):
         self.count = count
@@ -1246,7 +1268,7 @@ class Highlights:
         if result.on_plane(p):
             kept, key = self.on_planes, (result.character(p), contact[result.part_key][1])
         else:
-            kept, key = self.between, frozenset(contact["bodies"])
+            kept, key = self.between, frozenset(result.rigid_pair(p))
         frames = {c["frame"] for c, _, _ in (*self.between.values(), *self.on_planes.values())}
         if key not in kept and len(kept) < self.count and contact["frame"] not in frames:  # a picture a frame
             kept[key] = (contact, qpos0.copy(), qpos1.copy())

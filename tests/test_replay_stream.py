@@ -66,8 +66,8 @@ def test_small_chunks_and_one_chunk_agree(small_and_whole):
     assert small.n_frames == whole.n_frames == FRAMES
     assert len(whole.contacts) > 100
     assert small.contacts == whole.contacts
-    # geoms mode: 289 pairs of the two boxers' geoms and each of their 54 geoms against the floor
-    assert small.counters == whole.counters and whole.counters["pairs"] == (289 + 54) * (FRAMES - 1)
+    # geoms mode: 729 pairs of the two boxers' geoms and each of their 54 geoms against the floor
+    assert small.counters == whole.counters and whole.counters["pairs"] == (729 + 54) * (FRAMES - 1)
     assert small.overlaps == whole.overlaps and small.frames_in_contact == whole.frames_in_contact
     assert small.time_range == whole.time_range == (0.0, (FRAMES - 1) / 120.0)
     assert replay.summary(small) == replay.summary(whole)
@@ -102,7 +102,7 @@ def test_per_frame_arrays_are_made_on_use(tmp_path):
     assert "time" not in vars(res) and "in_contact" not in vars(res)   # nothing per frame kept
     np.testing.assert_array_equal(res.time, time)                      # read back from the file
     flags = res.in_contact
-    assert flags.shape == (2999, 289 + 54) and flags.any()
+    assert flags.shape == (2999, 729 + 54) and flags.any()
     assert int(flags.any(axis=1).sum()) == res.frames_in_contact
     assert int(flags.any(axis=0).sum()) == len(res.overlaps)
     for p, runs in res.overlaps.items():

@@ -21,7 +21,8 @@ each ellipsoid does in ellipsoid mode (:mod:`mjccd.geoms.batch`).
 *Pairs.*  With ``pairs=None``, MuJoCo's rules (:func:`mjccd.mujoco.pairs.collision_reasons`) on the real
 geoms, each geom pair on its own: nothing is dropped because bounding ellipsoids overlap in the reference
 pose.  With ``"characters"``, ``"self"`` or a list of body pairs, the body pairs those name (as for the
-ellipsoids, :func:`mjccd.mujoco.pairs.pairs_with_reason`) and every pair of their real geoms.  Static
+ellipsoids, :func:`mjccd.mujoco.pairs.pairs_with_reason`) and every pair of their real geoms, a body standing
+for its rigid part: itself and the bodies welded to it (a hand and the finger bodies fixed to it).  Static
 planes: by MuJoCo's rules with ``pairs=None``, else every static plane against every geom of a moving body.
 """
 import warnings
@@ -216,11 +217,15 @@ class GeomChecker:
             if ellipsoids is None:
                 raise ValueError("ellipsoids: needed to read the body pairs of a pairs argument")
             chosen, why = pairs_with_reason(m, ellipsoids, pairs, drop_overlapping_at_qpos0=False)
-            ids = ellipsoids.body_ids(m)
-            bodies = {(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in chosen.tolist()}
+            # a moving body stands for its rigid part, the bodies welded to it (a hand and the fingers fixed to
+            # it: one bound may cover them all); a static body for itself (every static body is welded to the world)
+            part = np.where(m.body_weldid != 0, m.body_weldid, np.arange(m.nbody))
+            weld = part[ellipsoids.body_ids(m)]
+            groups = {(min(int(weld[i]), int(weld[j])), max(int(weld[i]), int(weld[j]))) for i, j in chosen.tolist()}
+            of = part[self.body]
             for a in solid.tolist():
                 for b in solid.tolist():
-                    if a < b and (min(self.body[a], self.body[b]), max(self.body[a], self.body[b])) in bodies:
+                    if a < b and of[a] != of[b] and (min(of[a], of[b]), max(of[a], of[b])) in groups:
                         out.append((a, b))
             for p in plane_rows.tolist():
                 if by_rules:

@@ -16,9 +16,8 @@ import mujoco
 from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
 from mjccd.fitting import DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES
-from mjccd.mujoco.ellipsoids import fit_model, fit_report
+from mjccd.mujoco import ellipsoids as fitted  # fit_model's one public path is mjccd.mujoco.fit_model
 from mjccd.mujoco.warnings import CoverageWarning, mujoco_warnings
-from mjccd._command import PlainHelpFormatter
 
 VISUAL_GROUP = 5
 VISUAL_RGBA = (0.2, 0.6, 1.0, 0.3)
@@ -200,7 +199,7 @@ def _output_paths(args):
 
 def main(argv=None):
     """``mjccd fit MODEL.xml -o OUT.xml``: fit, report volume ratios, write MJCF and an ellipsoid file."""
-    parser = argparse.ArgumentParser(formatter_class=PlainHelpFormatter,
+    parser = argparse.ArgumentParser(formatter_class=_command.PlainHelpFormatter,
                                      prog="mjccd fit", description=DESCRIPTION)
     parser.add_argument("model", help="MJCF model file")
     parser.add_argument("-o", "--output", help="MJCF file with the ellipsoids added as visual geoms")
@@ -241,7 +240,7 @@ def main(argv=None):
                     raise InputError(f"--max-ellipsoids: expected a positive integer, got {args.max_ellipsoids}")
                 with warnings.catch_warnings(record=True) as notes:  # printed below, in the command's words
                     warnings.simplefilter("always", CoverageWarning)
-                    ellipsoids = fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
+                    ellipsoids = fitted.fit_model(model, tolerance=args.tolerance, per=args.per, bodies=args.bodies,
                                            include_visual=args.include_visual, max_ellipsoids=args.max_ellipsoids)
                 if len(ellipsoids) == 0:
                     raise ValueError("no body has sphere, capsule, ellipsoid, cylinder, box or mesh collision "
@@ -250,7 +249,8 @@ def main(argv=None):
                 for note in notes:  # geoms covered within a looser tolerance
                     print(f"mjccd fit: {args.model}: {str(note.message).removeprefix('fit_model: ')}",
                           file=sys.stderr)
-                report = None if args.quiet else fit_report(model, ellipsoids, include_visual=args.include_visual)
+                report = None if args.quiet else fitted.fit_report(model, ellipsoids,
+                                                                   include_visual=args.include_visual)
             except ValueError as exc:
                 raise InputError(f"{args.model}: {exc}") from None
             xml = mjcf_with_ellipsoids(args.model, ellipsoids, output, group=args.group) if output else None

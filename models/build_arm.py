@@ -6,7 +6,7 @@ with its six hinge joints; the fingers are fixed.  Joints 2 and 3 get an extra
 half turn in their body frames so that the poses used here have
 ``|angle| < pi`` (their MuJoCo ranges centre on pi in the original model).
 The obstacle is an I shape of three boxes (two flanges and a web).
-Bounding ellipsoids come from :func:`mjccd.fit.fit_model`: 10 on the arm (one
+Bounding ellipsoids come from :func:`mjccd.mujoco.fit_model` (``tolerance=None``): 10 on the arm (one
 per link body, the hand, each finger), 3 on the obstacle (one per box).
 
 The scripted motion: every joint follows ``tan(theta/2)`` linear in time
@@ -22,7 +22,7 @@ import tempfile
 import mujoco
 import numpy as np
 
-from mjccd import fit
+from mjccd.mujoco import fit_model
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 HALF_TURN_Z = "0 0 0 1"  # appended to the body quaternions of b_2 and b_3
@@ -146,8 +146,8 @@ def build(model_path, traj_path):
     try:
         model = mujoco.MjModel.from_xml_path(str(src))
         arm = ["b_base", "b_1", "b_2", "b_3", "b_4", "b_5", "hand", "b_finger_1", "b_finger_2", "b_finger_3"]
-        bodies = fit.fit_model(model, per="body", bodies=arm, include_visual=True)
-        beams = fit.fit_model(model, per="geom", bodies=["obstacle"], include_visual=True)
+        bodies = fit_model(model, tolerance=None, per="body", bodies=arm, include_visual=True)
+        beams = fit_model(model, tolerance=None, per="geom", bodies=["obstacle"], include_visual=True)
         lines = []
         for s in (bodies, beams):
             for k, name in enumerate(s.bodies):

@@ -5,7 +5,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from mjccd.fit import fit_model
+from mjccd.mujoco import fit_model
 from mjccd.mujoco.guard import GuardedStepper, GuardedWrapper, geom_ellipsoids
 
 WALL_HALF, BALL = 0.01, 0.02

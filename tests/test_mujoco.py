@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import mjccd
-from mjccd.fit import fit_model
-from mjccd.mujoco import (CCDMonitor, EllipsoidSet, Kinematics, State, capture, default_pairs,
+from mjccd.mujoco import (CCDMonitor, EllipsoidSet, Kinematics, State, capture, default_pairs, fit_model,
                           interpolate_qpos, motions_between)
 
 ARM = """

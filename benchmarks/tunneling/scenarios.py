@@ -77,8 +77,8 @@ class Scenario(abc.ABC):
 
     def ellipsoids(self):
         """The guard's :class:`~mjccd.mujoco.EllipsoidSet`: one fitted per body."""
-        from mjccd.fit import fit_model
-        return fit_model(self.model)
+        from mjccd.mujoco import fit_model
+        return fit_model(self.model, tolerance=None)
 
     pairs = None
 
@@ -202,8 +202,8 @@ class Cup(Scenario):
         mujoco.mj_forward(self.model, data)
 
     def ellipsoids(self):
-        from mjccd.fit import fit_model
-        return fit_model(self.model, per="geom")
+        from mjccd.mujoco import fit_model
+        return fit_model(self.model, tolerance=None, per="geom")
 
     def _cup_v(self, t):
         return self._speed if t < 0.03 else (-self._speed * 0.15 if t < 0.23 else 0.0)

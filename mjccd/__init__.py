@@ -7,8 +7,6 @@ from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine,
 from mjccd.plane import Plane, plane_collision_intervals, plane_first_contact, solve_plane
 from mjccd.quadric import (Ellipsoid, SeparatingPlane, contact_point, separating_plane,
                            static_status, static_status_many)
-from mjccd.scene import FrameCounters, FrameResult, PairContact, PlaneContact, Scene
-from mjccd.batch import BatchContacts, BatchScene
 
 __all__ = [
     "Affine", "Ball", "Chain", "Contact", "Ellipsoid", "Fixed", "Free", "Hinge", "LinearAffine",
@@ -19,3 +17,18 @@ __all__ = [
     "Scene", "FrameResult", "FrameCounters", "PairContact", "PlaneContact", "BatchScene", "BatchContacts",
 ]
 __version__ = "0.1.0"
+
+# many ellipsoids per frame, and many worlds: imported on first use, so that ``import mjccd`` stays quick
+_LATER = {"Scene": "mjccd.scene", "FrameResult": "mjccd.scene", "FrameCounters": "mjccd.scene",
+          "PairContact": "mjccd.scene", "PlaneContact": "mjccd.scene", "BatchScene": "mjccd.batch",
+          "BatchContacts": "mjccd.batch"}
+
+
+def __getattr__(name):
+    if name not in _LATER:
+        raise AttributeError(f"module 'mjccd' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_LATER[name]), name)
+    globals()[name] = value
+    return value

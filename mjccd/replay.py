@@ -661,11 +661,15 @@ class ReplayResult:
         """The character (top-level body) of pair ``p``'s first part."""
         return self.characters[self._first_part(p)]
 
-    def rigid_pair(self, p):
-        """The rigid parts (each the body its part's body is welded to: a hand for the fingers fixed to it) of a
-        pair ``p`` between two parts (not a plane pair)."""
-        a, b = (int(x) for x in self.pairs[p])
-        return self.rigid_parts[a], self.rigid_parts[b]
+    def group(self, p):
+        """``(key, label)`` of what pair ``p`` is shown as (a timeline row, a highlight): a character against a plane
+        for a plane pair, else the two rigid parts (each the body its part's body is welded to: a hand for the
+        fingers fixed to it)."""
+        if self.on_plane(p):
+            key = (self.character(p), self.names(p)[0][1])
+            return key, f"{key[0]} (any part) / {key[1]}"
+        key = tuple(sorted(self.rigid_parts[int(x)] for x in self.pairs[p]))
+        return key, f"{key[0]} / {key[1]}"
 
     @property
     def n_checked(self):
@@ -1170,26 +1174,20 @@ def plot_timeline(result, target):
     hits_of = {}
     for c in result.contacts:
         hits_of.setdefault(tuple(c[result.part_key]), _ThinTimes(gap)).add(c["time"])
-    rows = {}  # a row per pair in contact, but one per character for all its parts against one plane
-    for p, runs in result.pair_runs():
-        parts, _, names = result.names(p)
-        if result.on_plane(p):
-            key = (result.character(p), parts[1])
-            label = f"{key[0]} (any part) / {key[1]}"
-        else:  # one row per pair of rigid parts (the fingers fixed to a hand are the hand)
-            key = result.rigid_pair(p)
-            label = f"{key[0]} / {key[1]}"
-        row = rows.setdefault(key, (label, [], _ThinTimes(gap)))
+    rows = {}  # group -> (label, contact runs, first-contact times): a row per pair of rigid parts, per character
+    for p, runs in result.pair_runs():  # against a plane
+        key, label = result.group(p)
+        row = rows.setdefault(key, (label, [], []))
         row[1].extend(_thin_runs(list(zip(runs["start"].tolist(), runs["end"].tolist())), gap))
-        for x in (hits_of[tuple(parts)].kept if tuple(parts) in hits_of else ()):
-            row[2].kept.append(x)
+        parts = tuple(result.names(p)[0])
+        row[2].extend(hits_of[parts].kept if parts in hits_of else ())
     labels = []
     fig, ax = plt.subplots(figsize=(10, max(2.5, 0.25 * len(rows) + 1.2)))
     for row, (label, runs, hits) in enumerate(rows.values()):
         labels.append(label)
         bars = _thin_runs(_joined(sorted(runs)), gap)
         ax.broken_barh([(a, b - a) for a, b in bars], (row - 0.35, 0.7), facecolors="tab:blue", alpha=0.5)
-        times = _thinned_times(sorted(hits.kept), gap)
+        times = _thinned_times(sorted(hits), gap)
         ax.plot(times, [row] * len(times), "o", color="tab:red", ms=4)
     ax.set_yticks(range(len(labels)))
     ax.set_yticklabels(labels, fontsize=7)
@@ -1262,16 +1260,15 @@ class Highlights:
 
     def __init__(self, count):
         self.count = count
-        self.between, self.on_planes = {}, {}  # category -> (contact, qpos0, qpos1), first come first kept
+        self.between, self.on_planes = {}, {}  # group (ReplayResult.group) -> (contact, qpos0, qpos1), first kept
+        self.frames = set()  # a picture a frame
 
     def offer(self, result, p, contact, qpos0, qpos1):
-        if result.on_plane(p):
-            kept, key = self.on_planes, (result.character(p), contact[result.part_key][1])
-        else:
-            kept, key = self.between, frozenset(result.rigid_pair(p))
-        frames = {c["frame"] for c, _, _ in (*self.between.values(), *self.on_planes.values())}
-        if key not in kept and len(kept) < self.count and contact["frame"] not in frames:  # a picture a frame
+        kept = self.on_planes if result.on_plane(p) else self.between
+        key = result.group(p)[0]
+        if key not in kept and len(kept) < self.count and contact["frame"] not in self.frames:
             kept[key] = (contact, qpos0.copy(), qpos1.copy())
+            self.frames.add(contact["frame"])
 
     def chosen(self):
         """Up to ``count`` of them, in time order: contacts between bodies first, at least one on a plane."""

@@ -4,7 +4,7 @@ A replay of a million frames finds about a hundred thousand first contacts and a
 frames in contact.  :class:`JsonSpool` keeps the contacts (JSON-able dicts, one JSON line each)
 and :class:`ArraySpool` the runs (fixed-width numpy records) on disk; both read back in order as
 often as needed.  Floats survive exactly (JSON writes ``repr``).  The files vanish when the spool
-is closed or collected.
+is collected.
 """
 import itertools
 import json
@@ -75,9 +75,6 @@ class JsonSpool:
     def __reduce__(self):
         return JsonSpool, (list(self),)
 
-    def close(self):
-        self._file.close()
-
 
 class ArraySpool:
     """Numpy records of one dtype, appended one at a time and stored on disk; :meth:`array` reads them all."""
@@ -113,9 +110,6 @@ class ArraySpool:
 
     def __reduce__(self):
         return _array_spool, (self.dtype, self.array())
-
-    def close(self):
-        self._file.close()
 
 
 def _array_spool(dtype, records):

@@ -13,7 +13,7 @@ from mjccd.quadric import Ellipsoid
 from mjccd.mujoco.adapter import ModelAdapter, load_model
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, fit_model
 from mjccd.mujoco.monitor import check_mode, selected_geoms
-from mjccd.mujoco.motions import State
+from mjccd.mujoco.motions import State, geom_distance_between
 from mjccd.mujoco.pairs import select_pairs
 
 
@@ -137,16 +137,11 @@ def _real_distance(model, state0, state1, fraction, bodies):
     (``mj_differentiatePos``/``mj_integratePos`` between the step's qpos, ``mj_geomDistance``), or None when a body
     has no geom."""
     data = mujoco.MjData(model)
-    velocity = np.zeros(model.nv)
-    mujoco.mj_differentiatePos(model, velocity, 1.0, state0.qpos, state1.qpos)
-    qpos = np.array(state0.qpos, dtype=float)
-    mujoco.mj_integratePos(model, qpos, velocity, fraction)
-    data.qpos[:] = qpos
     data.mocap_pos[:], data.mocap_quat[:] = state0.mocap_pos, state0.mocap_quat
-    mujoco.mj_kinematics(model, data)
     geoms = [[g for g in range(model.ngeom) if model.geom_bodyid[g] == b] for b in bodies]
-    gaps = [mujoco.mj_geomDistance(model, data, g1, g2, 10.0, None) for g1 in geoms[0] for g2 in geoms[1]]
-    return min(gaps) if gaps else None
+    gap = geom_distance_between(model, data, [(g1, g2) for g1 in geoms[0] for g2 in geoms[1]], state0.qpos,
+                                state1.qpos, fraction)
+    return None if gap == np.inf else gap
 
 
 def assert_first_contact(model, trajectory, pair, time, *, tol=1e-6, ellipsoids=None, motion="rigid", times=None,

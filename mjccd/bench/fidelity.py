@@ -41,6 +41,7 @@ from mjccd.bench import options
 from mjccd.bench.report import write_section
 from mjccd.fitting import DEFAULT_TOLERANCE
 from mjccd.mujoco import CCDMonitor, fit_model
+from mjccd.mujoco.motions import geom_distance_between
 from mjccd.mujoco.pairs import bounded_geoms, plane_pairs
 from mjccd._command import PlainHelpFormatter
 
@@ -160,7 +161,6 @@ class Geometry:
     def __init__(self, model):
         self.model = model
         self.data = mujoco.MjData(model)
-        self._qvel = np.zeros(model.nv)
 
     def contacts(self, data):
         """MuJoCo's contacts at ``data``'s positions: {geom pair: dist} of those with dist < 0."""
@@ -177,12 +177,7 @@ class Geometry:
     def distance(self, pairs, qpos0, qpos1, fraction):
         """Least signed distance (mj_geomDistance) of the geom ``pairs`` at the state a ``fraction`` of the way
         from qpos0 to qpos1 as MuJoCo interpolates it (mj_differentiatePos, mj_integratePos)."""
-        m, e = self.model, self.data
-        mujoco.mj_differentiatePos(m, self._qvel, 1.0, qpos0, qpos1)
-        e.qpos[:] = qpos0
-        mujoco.mj_integratePos(m, e.qpos, self._qvel, fraction)
-        mujoco.mj_kinematics(m, e)
-        return min((mujoco.mj_geomDistance(m, e, g1, g2, 10.0 * NEAR[-1], None) for g1, g2 in pairs), default=np.inf)
+        return geom_distance_between(self.model, self.data, pairs, qpos0, qpos1, fraction, 10.0 * NEAR[-1])
 
 
 def covered(model, ellipsoids):

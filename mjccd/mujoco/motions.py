@@ -213,6 +213,18 @@ def interpolate_qpos(model, qpos0, qpos1, t):
     return out
 
 
+def geom_distance_between(model, data, geom_pairs, qpos0, qpos1, fraction, distmax=10.0):
+    """The least ``mj_geomDistance`` over ``geom_pairs`` at the state ``fraction`` of the way from qpos0 to qpos1
+    as MuJoCo interpolates it (``mj_differentiatePos``, ``mj_integratePos``), on ``data`` (a private MjData whose
+    mocap poses the caller set); inf without pairs.  Independent of mjccd's motions: a check of its contacts."""
+    velocity = np.zeros(model.nv)
+    mujoco.mj_differentiatePos(model, velocity, 1.0, qpos0, qpos1)
+    data.qpos[:] = qpos0
+    mujoco.mj_integratePos(model, data.qpos, velocity, fraction)
+    mujoco.mj_kinematics(model, data)
+    return min((mujoco.mj_geomDistance(model, data, g1, g2, distmax, None) for g1, g2 in geom_pairs), default=np.inf)
+
+
 @numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def poses_then_may_touch(xpos, xquat, body_ids, local, p0, p1, workspace):
     """:func:`ellipsoid_poses_into` for the end poses ``p1`` (``local`` = [positions, quaternions]),

@@ -253,7 +253,7 @@ def solve_case(case):
     b, mb, shaped_b = _body(case, "b")
     if shaped_a or shaped_b:
         return _geom_result(a, ma, b, mb)
-    status, contact, intervals = solve_pair(a, ma, b, mb)
+    status, contact, intervals, certified = solve_pair(a, ma, b, mb)
     point = None
     if contact is not None and contact.point is not None:
         point = [float(x) for x in contact.point]
@@ -261,9 +261,9 @@ def solve_case(case):
               "first_contact": None if contact is None else float(contact.time),
               "intervals": [[t0, t1] for t0, t1 in intervals],
               "contact_point": point,
-              "certainty": "certified" if contact is None else contact.certainty}
-    if result["certainty"] == "uncertain":
-        result["first_contact_bracket"] = [float(x) for x in contact.bracket]
+              "certainty": "certified" if certified else "uncertain"}
+    if not certified:  # the first contact's own bracket; a proven first contact with a later end left open: its time
+        result["first_contact_bracket"] = [float(x) for x in (contact.bracket or (contact.time, contact.time))]
     return result
 
 
@@ -372,9 +372,9 @@ def _plain_case(case):
 
 def _packed_result(cid, out):
     """The result of a case from its packed answer (a list, see :func:`mjccd.ccd.pack_solution`), as
-    :func:`solve_case` writes it; None when the answer needs the rational tier."""
-    status0, k, reached, _, certified, lo, hi = out[:7]
-    if _needs_exact(status0, certified, reached):
+    :func:`solve_case` writes it; None when the answer needs the rational tier (every uncertain one does)."""
+    status0, k, _, _, certified = out[:5]
+    if _needs_exact(status0, certified):
         return None
     k = int(k)
     times = out[PACKED_HEAD:PACKED_HEAD + 2 * k]
@@ -387,10 +387,7 @@ def _packed_result(cid, out):
         result["first_contact"] = times[0]
         result["contact_point"] = out[7:10]
     else:
-        result["first_contact"] = None if certified else lo
-    if not certified:  # a search limit: every possible first contact lies in [lo, hi]
-        result["certainty"] = "uncertain"
-        result["first_contact_bracket"] = [lo, hi]
+        result["first_contact"] = None
     return result
 
 

@@ -73,6 +73,7 @@ TIME_TOL = 1e-9           # an event is certified when its time is this close to
 # half-width of the bracket around a double estimate that the rational tier tries before bisecting to 2^-60: where it
 # holds, the estimate is the answer, proven within 9e-16
 NEAR_SPAN = 2.0 ** -50
+HELD_PROBES = 64          # exact statuses an uncertain bracket's end may take to reach a time the pair is not separate
 
 
 # ---------------------------------------------------------------- building F
@@ -1214,8 +1215,8 @@ def _leave_contact(F, E, t_in, in_hi, t_max):
             elif state(F, t_out)[0] < 0.0:  # the zero of the computed State before the separate probe
                 t_out = _rising_zero(F, t_out, probe)
             return t_out, lower, probe, probe, False
-        if code == 0:
-            return t_max, t_max, t_max, t_max, False
+        if code == 0:  # inside the rounding band up to t_max: the end lies anywhere after the last proven overlap
+            return t_max, lower, t_max, t_max, False
         t_exit, certified = search_exit(F, E, probe, t_max)
         if not certified:
             return t_exit, t_exit, t_max, t_max, True
@@ -1677,9 +1678,10 @@ def _two_pose_call(a, motion_a, b, motion_b, t_max, first_only):
                          b.radii, motion_b._row, t_max, first_only)
 
 
-def _needs_exact(status0, certified, reached):
-    """True when a double-precision answer goes on to the rational tier (see :func:`solve_motions`)."""
-    return status0 == 0 or (not certified and reached < 0.0 and status0 == 1)
+def _needs_exact(status0, certified):
+    """True when a double-precision answer goes on to the rational tier (see :func:`solve_motions`):
+    touching at the start, or uncertain (its bracket is refined, or made to hold, in rational arithmetic)."""
+    return status0 == 0 or not certified
 
 
 def _unpacked(out):
@@ -1741,6 +1743,34 @@ class PairSolution(NamedTuple):
     precision: int = 0         # DOUBLE, DOUBLE_TIGHT or RATIONAL: the most careful tier the answer needed
 
 
+def _turned(quadric, R):
+    """(P, U, s, err) of a quadric in the frame x = R x': R^T P R, R^T U, s, with err grown by the rounding."""
+    P, U, s, err = quadric
+    Pm, Um, _ = bz.abs_maxima(P, U, s)
+    aR = np.abs(R)
+    out = np.empty((4, 4))
+    out[:3, :3] = aR.T @ (err[:3, :3] + gamma(12) * Pm) @ aR
+    out[:3, 3] = out[3, :3] = aR.T @ (err[:3, 3] + gamma(6) * Um)
+    out[3, 3] = err[3, 3]
+    turned_P = np.ascontiguousarray(np.einsum("ki,klm,lj->ijm", R, P, R))
+    return turned_P, np.ascontiguousarray(np.einsum("ki,km->im", R, U)), s, out
+
+
+def _turned_to_thinner(quadric_a, quadric_b):
+    """(R, A, B): both bounded quadrics turned to the principal axes of the thinner body halfway through the
+    piece, as the two-pose kernel turns the frame to A's axes (docs/method.md): the large curvatures of a
+    body flattened near a singular linear part then sit apart from its small ones instead of swamping
+    them.  Any invertible R keeps every status and time; the rounding of the turn joins the error bounds."""
+    def axes(P):
+        middle = np.array([[bz.evaluate(P[i, j].copy(), 0.5) for j in range(3)] for i in range(3)])
+        values, vectors = np.linalg.eigh(0.5 * (middle + middle.T))
+        return abs(values[0]) / max(abs(values[2]), 1e-300), vectors
+    roundness_a, axes_a = axes(quadric_a[0])
+    roundness_b, axes_b = axes(quadric_b[0])
+    R = axes_a if roundness_a <= roundness_b else axes_b
+    return R, _turned(quadric_a, R), _turned(quadric_b, R)
+
+
 def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     """The general path: both motions in a local frame at A's start, built and solved piece by piece."""
     origin = np.asarray(motion_a.anchor(), float)
@@ -1756,8 +1786,9 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
     reached = -1.0
     precision = DOUBLE
     for t0, t1 in zip(edges[:-1], edges[1:]):
-        pencil, err, frame_origin = prepare_pair(*local_a.quadric_bounded_on(a.radii, t0, t1),
-                                                 *local_b.quadric_bounded_on(b.radii, t0, t1), length)
+        turn, quadric_a, quadric_b = _turned_to_thinner(local_a.quadric_bounded_on(a.radii, t0, t1),
+                                                        local_b.quadric_bounded_on(b.radii, t0, t1))
+        pencil, err, frame_origin = prepare_pair(*quadric_a, *quadric_b, length)
         code, piece, bounds, u, piece_reached, tier = solve_balanced(*pencil, err, 1.0,
                                                                      first_only and not intervals)
         precision = max(precision, int(tier))
@@ -1774,7 +1805,9 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
             if not intervals and status0 == 1:
                 point, normal = touching_point(pencil_quadric_at(*pencil, 0, s_in),
                                                pencil_quadric_at(*pencil, 1, s_in), u)
-                point = origin + frame_origin + length * point
+                point = origin + turn @ (frame_origin + length * point)
+                normal = turn @ normal
+                normal /= np.linalg.norm(normal)
             intervals.append([t_in, t_out])
             all_bounds.append(box)
         if piece_reached >= 0.0:
@@ -1848,19 +1881,22 @@ class _ExactPair:
         return self.origin + np.array(point), np.array(normal)
 
 
-def _settled_event(pair, t, lo, hi, separate_at_lo, interval, inside):
+def _settled_event(pair, t, lo, hi, separate_at_lo, interval, inside, t_max):
     """(time, boundary, bracket lo, bracket hi) of the event estimated at t in the double bracket [lo, hi], in
     rational arithmetic, or None when the exact status does not confirm it.
 
     The estimate confirmed by two exact statuses (:meth:`_ExactPair.change_near`), or else bisection to the
     last bit (the bracket is then the time itself): for an entry (``separate_at_lo``) that finds the pair
     separate again at hi (a graze in the band), from a time inside ``interval`` that is not separate; for an
-    exit whose lower end is not inside, from ``inside``, a time the pair is not separate.
+    exit whose lower end is not inside, from ``inside``, a time the pair is not separate.  An exit the double
+    left inside the rounding band up to ``t_max`` holds when the pair is not separate at t_max.
     """
     if lo < t < hi:
         near = pair.change_near(t, lo, hi, separate_at_lo)
         if near is not None:
             return near
+    if not separate_at_lo and t == hi == t_max and pair.status(Fraction(hi)) != 1:
+        return t, Fraction(hi), t, t  # not separate at the end of the window: the interval reaches it
     found = pair.separation_change(lo, hi, separate_at_lo)
     if found is None and separate_at_lo:
         probe = pair.first_not_separate(lo, hi, interval[0], interval[1])
@@ -1870,7 +1906,7 @@ def _settled_event(pair, t, lo, hi, separate_at_lo, interval, inside):
     return None if found is None else (found[0], found[1], found[0], found[0])
 
 
-def _refine_exactly(a, motion_a, b, motion_b, solution):
+def _refine_exactly(a, motion_a, b, motion_b, solution, t_max):
     """Events whose proven bracket is wider than TIME_TOL, settled by bisection on the exact status.
 
     Double precision proved the pair separate before each start bracket and
@@ -1894,7 +1930,7 @@ def _refine_exactly(a, motion_a, b, motion_b, solution):
             t = intervals[k, end]
             if max(t - lo, hi - t) <= TIME_TOL or (end == 0 and k == 0 and solution.status_at_start != 1):
                 continue
-            found = _settled_event(pair, t, lo, hi, separate_at_lo, intervals[k], inside)
+            found = _settled_event(pair, t, lo, hi, separate_at_lo, intervals[k], inside, t_max)
             if found is None:
                 certified = False
                 continue
@@ -1948,6 +1984,44 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
                    bracket=(t, t), certified=bool(certified))
 
 
+def _held_bracket(a, motion_a, b, motion_b, solution, t_max):
+    """An uncertain ``solution`` whose bracket reaches a time at which the pair is exactly not separate.
+
+    The double solver proves the pair separate up to the bracket's low end;
+    its high end is where the probes of the entry left the rounding band,
+    which may be "separate again" rather than a proven overlap: the bodies
+    may have missed there and touch later, or never.  Then the bracket
+    reaches to the first later time of the double's intervals (entries,
+    middles, ends; outside them the pair is proven separate) at which the
+    exact status is not separate; failing that, to the end of the last
+    interval (no contact is then possible after it), or to ``t_max`` when a
+    search limit left the rest unsolved.  Every possible first contact lies
+    inside the bracket.
+    """
+    lo, hi = solution.bracket
+    pair = _ExactPair(a, motion_a, b, motion_b)
+    if hi - lo <= TIME_TOL or pair.status(Fraction(hi)) != 1:  # settled, or a proven end
+        return solution
+    full = _unsettled(a, motion_a, b, motion_b, t_max, False)
+    times = sorted({t for row, box in zip(full.intervals.tolist(), full.bounds.tolist())
+                    for t in (box[1], row[0], 0.5 * (row[0] + row[1]), row[1]) if hi < t <= t_max})
+    for t in times[:HELD_PROBES]:
+        if pair.status(Fraction(t)) != 1:
+            return solution._replace(bracket=(lo, t))
+    if full.reached < 0.0 and len(times) <= HELD_PROBES:
+        end = max([hi] + [box[3] for box in full.bounds.tolist()])
+        return solution._replace(bracket=(lo, min(end, t_max)))
+    return solution._replace(bracket=(lo, t_max))
+
+
+def _unsettled(a, motion_a, b, motion_b, t_max, first_only):
+    """The double-precision :class:`PairSolution` of a pair, before the rational tier."""
+    if _two_poses(a, motion_a, b, motion_b):
+        return _unpacked(_two_pose_call(a, motion_a, b, motion_b, float(t_max), first_only))
+    _check_pair(a, motion_a, b, motion_b)
+    return _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
+
+
 def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     """The one path that answers a pair: a :class:`PairSolution` over [0, t_max].
 
@@ -1955,20 +2029,18 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
     the fused kernel :func:`two_pose_pair`; every other pair is built in a
     local frame and over pieces of time (:func:`time_pieces`).
     """
-    if _two_poses(a, motion_a, b, motion_b):
-        solution = _unpacked(_two_pose_call(a, motion_a, b, motion_b, float(t_max), first_only))
-    else:
-        _check_pair(a, motion_a, b, motion_b)
-        solution = _solve_pieces(a, motion_a, b, motion_b, t_max, first_only)
-    return _settled(a, motion_a, b, motion_b, solution, first_only)
+    solution = _unsettled(a, motion_a, b, motion_b, t_max, first_only)
+    return _settled(a, motion_a, b, motion_b, solution, first_only, t_max)
 
 
-def _settled(a, motion_a, b, motion_b, solution, first_only):
+def _settled(a, motion_a, b, motion_b, solution, first_only, t_max):
     """The double-precision ``solution`` with what it left open settled in rational arithmetic."""
     if solution.status_at_start == 0:
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
-    if not solution.certified and solution.reached < 0.0 and solution.status_at_start == 1:
-        solution = _refine_exactly(a, motion_a, b, motion_b, solution)
+    if not solution.certified and solution.reached < 0.0:
+        solution = _refine_exactly(a, motion_a, b, motion_b, solution, t_max)
+    if not solution.certified and solution.status_at_start == 1:
+        solution = _held_bracket(a, motion_a, b, motion_b, solution, t_max)
     return solution
 
 
@@ -2021,13 +2093,11 @@ def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
     if not _two_poses(a, motion_a, b, motion_b):
         return _contact(solve_motions(a, motion_a, b, motion_b, t_max, True))
     out = _two_pose_call(a, motion_a, b, motion_b, t_max, True)
-    status0, k, reached, _, certified = out[:5].tolist()
-    if _needs_exact(status0, certified, reached):
-        return _contact(_settled(a, motion_a, b, motion_b, _unpacked(out), True))
+    status0, k, _, _, certified = out[:5].tolist()
+    if _needs_exact(status0, certified):
+        return _contact(_settled(a, motion_a, b, motion_b, _unpacked(out), True, t_max))
     if status0 != 1:
         return Contact(0.0, None, None, STATUS_NAMES[int(status0)])
-    if not certified:  # a search limit: the bracket of a possible contact
-        return _contact(_unpacked(out))
     return Contact(float(out[PACKED_HEAD]), out[7:10], out[10:13], "separate") if k > 0 else None
 
 
@@ -2036,16 +2106,17 @@ def collision_intervals(a, motion_a, b, motion_b):
     if not _two_poses(a, motion_a, b, motion_b):
         return [(float(x), float(y)) for x, y in solve_motions(a, motion_a, b, motion_b).intervals]
     out = _two_pose_call(a, motion_a, b, motion_b, 1.0, False)
-    status0, k, reached, _, certified = out[:5].tolist()
-    if _needs_exact(status0, certified, reached):
-        out = _settled(a, motion_a, b, motion_b, _unpacked(out), False).intervals.ravel()
+    status0, k, _, _, certified = out[:5].tolist()
+    if _needs_exact(status0, certified):
+        out = _settled(a, motion_a, b, motion_b, _unpacked(out), False, 1.0).intervals.ravel()
         return list(zip(out[0::2].tolist(), out[1::2].tolist()))
     times = out[PACKED_HEAD:PACKED_HEAD + 2 * int(k)].tolist()
     return list(zip(times[0::2], times[1::2]))
 
 
 def solve_pair(a, motion_a, b, motion_b):
-    """Status at start, first contact (a :class:`Contact` or None) and all intervals, in one pass."""
+    """Status at start, first contact (a :class:`Contact` or None), all intervals, and whether the whole
+    answer is certified (a first contact may be, while a later interval's end is only bracketed), in one pass."""
     solution = solve_motions(a, motion_a, b, motion_b)
     return (STATUS_NAMES[solution.status_at_start], _contact(solution),
-            [(float(x), float(y)) for x, y in solution.intervals])
+            [(float(x), float(y)) for x, y in solution.intervals], solution.certified)

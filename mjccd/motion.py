@@ -33,6 +33,7 @@ _jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=Fal
 # kernel of its own, numba compiled it once per literal value
 _inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False, inline="always")
 EPS = 2.220446049250313e-16
+FLATTENING = 1e-12  # a linear_affine L(t) must keep |det L| above this times its size cubed (see _not_flattened)
 
 
 # ---------------------------------------------------------------- kernels
@@ -449,6 +450,29 @@ def _nonvanishing(poly_power, field, bernstein=False):
         raise InputError(f"{field}: vanishes on [0, 1] (near t = {ts[int(np.argmin(vals))]:.6g})")
 
 
+def _not_flattened(det, size):
+    """Refuse a linear part L(t) that comes within FLATTENING of singular on [0, 1].
+
+    The rule: det L(t) keeps one sign, and its smallest magnitude on [0, 1]
+    (at an end or where its derivative vanishes: a cubic, ``det`` in
+    Bernstein form) is more than FLATTENING * size^3, ``size`` the larger
+    Frobenius norm of L at the ends (the largest over [0, 1]: the norm is
+    convex along a lerp).  Since det L <= s_min s_max^2 <= s_min size^2, a body
+    that passes is never flattened below FLATTENING of its size.
+    """
+    d0, d1, d2 = 3.0 * np.diff(det)  # the derivative, a quadratic in Bernstein form
+    roots = np.roots([d0 - 2.0 * d1 + d2, 2.0 * (d1 - d0), d0])
+    times = [0.0, 1.0] + [float(r.real) for r in roots if abs(r.imag) <= 1e-12 * abs(r) and 0.0 < r.real < 1.0]
+    ordered = sorted((t, bz.evaluate(det, t)) for t in times)
+    for (ta, va), (tb, vb) in zip(ordered, ordered[1:]):
+        if va * vb <= 0.0:
+            raise InputError(f"start/end: the linear part L(t) becomes singular between t = {ta:.6g} and {tb:.6g}")
+    t, value = min(ordered, key=lambda pair: abs(pair[1]))
+    if abs(value) <= FLATTENING * size ** 3:
+        raise InputError(f"start/end: the linear part L(t) is within {FLATTENING:g} of singular at t = {t:.6g} "
+                         f"(det L = {value:.3g}, |L| up to {size:.3g})")
+
+
 def _pose_from_json(d, field):
     if not isinstance(d, dict):
         raise InputError(f"{field}: expected an object with position and quaternion")
@@ -761,7 +785,7 @@ class LinearAffine(_WMotion):
         self.start = _validate.array(start, (3, 4), "start")
         self.end = _validate.array(end, (3, 4), "end")
         adj, det = bz.adjugate3(_linear_bernstein(self.start[:, :3], self.end[:, :3]))  # of L(t): (3, 3, 2)
-        _nonvanishing(det, "start/end: the linear part L(t) becomes singular:", bernstein=True)
+        _not_flattened(det, max(np.linalg.norm(self.start[:, :3]), np.linalg.norm(self.end[:, :3])))
         super().__init__(adj, self._h(adj, np.zeros(3)), det)
 
     def _h(self, adj, offset):

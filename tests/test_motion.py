@@ -106,3 +106,34 @@ def test_plain_and_array_inputs_give_the_same_motion():
     assert np.array_equal(a._row[3:], c._row[3:])
     assert np.array_equal(mjccd.Static(p0, q0)._row, mjccd.Static(list(p0), list(q0))._row)
     assert mjccd.Ellipsoid([1, 2, 3]).radii.tolist() == mjccd.Ellipsoid(np.array([1.0, 2.0, 3.0])).radii.tolist()
+
+
+def _flattened(ratio, ts, scale, rng):
+    """(start, end) 3x4 of x = c L(t) y with L(t) = U [[1,0,0],[0,1,(t-ts)],[0,-(t-ts),r]] V^T: det L is
+    smallest at ts, r + (t - ts)^2 there; r is chosen so that it equals ``ratio`` x |L|_F^3 (the larger end)."""
+    U = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    V = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    size = max(np.sqrt(3.0 + 2.0 * ts ** 2), np.sqrt(3.0 + 2.0 * (1.0 - ts) ** 2))  # |L|_F at the ends, r ~ 0
+    r = ratio * size ** 3
+
+    def end(t):
+        L = scale * U @ np.array([[1.0, 0, 0], [0, 1.0, t - ts], [0, -(t - ts), r]]) @ V.T
+        return np.hstack([L, rng.normal(size=(3, 1))])
+    return end(0.0), end(1.0)
+
+
+@pytest.mark.parametrize("ts", [0.0, 0.37, 0.5, 1.0])
+def test_linear_affine_refusal_depends_only_on_how_flat_it_gets(ts):
+    """The documented rule: refused when min |det L(t)| <= 1e-12 |L|_F^3 (or det changes sign), the same at
+    any scale, turned any way, with the flattest time at an end or inside."""
+    rng = np.random.default_rng(7)
+    for scale in (1e-3, 1.0, 1e3):
+        start, end = _flattened(0.5 * mo.FLATTENING, ts, scale, rng)
+        with pytest.raises(InputError, match="within 1e-12 of singular"):
+            mjccd.LinearAffine(start, end)
+        start, end = _flattened(2.0 * mo.FLATTENING, ts, scale, rng)
+        mjccd.LinearAffine(start, end)
+    start, end = _flattened(2.0 * mo.FLATTENING, ts, 1.0, rng)
+    end[:, :3] *= -1.0  # det L(1) < 0 < det L(0)
+    with pytest.raises(InputError, match="becomes singular between"):
+        mjccd.LinearAffine(start, end)

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from mjccd import _validate, exact
+from mjccd import _validate, exact, exact_stretch
 from mjccd import bernstein as bz
 from mjccd.errors import InputTypeError
 from mjccd.motion import (EPS, Affine, Motion, Rigid, Static, centre_extent, gamma, pose_side_errors, quadric_affine,
@@ -73,6 +73,9 @@ TIME_TOL = 1e-9           # an event is certified when its time is this close to
 # half-width of the bracket around a double estimate that the rational tier tries before bisecting to 2^-60: where it
 # holds, the estimate is the answer, proven within 9e-16
 NEAR_SPAN = 2.0 ** -50
+STRETCH_PIECES = 8       # pieces of time a round may take to prove a stretch separate in rationals
+SPURIOUS_PIECES = 16     # pieces of time the proof that a doubtful interval holds no contact may take
+STRETCH_ROUNDS = 12      # rounds of that proof, each followed by the double solver from its end
 HELD_PROBES = 64          # exact statuses an uncertain bracket's end may take to reach a time the pair is not separate
 
 
@@ -1771,13 +1774,17 @@ def _turned_to_thinner(quadric_a, quadric_b):
     return R, _turned(quadric_a, R), _turned(quadric_b, R)
 
 
-def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
-    """The general path: both motions in a local frame at A's start, built and solved piece by piece."""
+def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only, t_start=0.0):
+    """The general path: both motions in a local frame at A's start, built and solved piece by piece
+    (over [t_start, t_max]: the status at start is then the status at t_start)."""
     origin = np.asarray(motion_a.anchor(), float)
     local_a, local_b = motion_a.translated(origin), motion_b.translated(origin)
     length = float(max(a.radii.max(), b.radii.max()))
     factors = [f for f in (local_a.factor(), local_b.factor()) if f is not None]
     edges = time_pieces(factors, t_max)
+    if t_start > 0.0:
+        edges = [t_start] + [t for t in edges if t > t_start]
+    at_end = None
     intervals = []
     status0 = None
     point = normal = None
@@ -1795,6 +1802,12 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
         if status0 is None:
             status0 = int(code)
         width = t1 - t0
+        if at_end is not None and code != 1:  # the touch the piece before found at its end, not refuted here
+            if not intervals:
+                point, normal = at_end[2]
+            intervals.append(at_end[0])
+            all_bounds.append(at_end[1])
+        at_end = None
         for (s_in, s_out), box in zip(piece, bounds):
             t_in, t_out = t0 + s_in * width, t0 + s_out * width
             box = t0 + box * width
@@ -1802,12 +1815,21 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only):
                 intervals[-1][1] = t_out
                 all_bounds[-1][2:] = box[2:]
                 continue
+            if code == 0 and s_in == 0.0 and t0 > edges[0]:
+                # a later piece starting inside the rounding band: the piece before proved the pair separate up
+                # to t0, this one cannot tell; what it calls a contact may be anywhere in the piece, or none
+                box[1] = max(box[1], t1)
+                box[3] = max(box[3], t1)
+            touch = (point, normal)
             if not intervals and status0 == 1:
-                point, normal = touching_point(pencil_quadric_at(*pencil, 0, s_in),
-                                               pencil_quadric_at(*pencil, 1, s_in), u)
-                point = origin + turn @ (frame_origin + length * point)
-                normal = turn @ normal
-                normal /= np.linalg.norm(normal)
+                p, n = touching_point(pencil_quadric_at(*pencil, 0, s_in), pencil_quadric_at(*pencil, 1, s_in), u)
+                touch = (origin + turn @ (frame_origin + length * p), turn @ n / np.linalg.norm(turn @ n))
+            if s_in == 1.0 and t1 < edges[-1]:
+                # inside the rounding band just at the piece's end: a touch only if the next piece, which
+                # starts there, cannot prove the pair separate
+                at_end = ([t_in, t_out], box, touch)
+                continue
+            point, normal = touch
             intervals.append([t_in, t_out])
             all_bounds.append(box)
         if piece_reached >= 0.0:
@@ -1872,6 +1894,21 @@ class _ExactPair:
             if self.status(Fraction(t)) != 1:
                 return t
         return None
+
+    def polynomial(self):
+        """(A(t), B(t), degree): the exact quadrics as polynomials in t (evaluations cached), for
+        :mod:`mjccd.exact_stretch`; None when a motion has no scaled inverse (the affine interpolant)."""
+        if not all(hasattr(m, "polynomial_quadric_at") for m in (self.local_a, self.local_b)):
+            return None
+        cache = {}
+
+        def quadrics(t):
+            if t not in cache:
+                cache[t] = (self.local_a.polynomial_quadric_at(self.a.radii, t),
+                            self.local_b.polynomial_quadric_at(self.b.radii, t))
+            return cache[t]
+        degree = max(self.local_a.quadric_degree(), self.local_b.quadric_degree())
+        return (lambda t: quadrics(t)[0]), (lambda t: quadrics(t)[1]), degree
 
     def touch(self, t):
         """World touch point and unit normal of the pair at time t, in rational arithmetic."""
@@ -2014,6 +2051,114 @@ def _held_bracket(a, motion_a, b, motion_b, solution, t_max):
     return solution._replace(bracket=(lo, t_max))
 
 
+def _float_below(x):
+    """The largest float <= the Fraction x."""
+    f = float(x)
+    return f if Fraction(f) <= x else float(np.nextafter(f, -np.inf))
+
+
+def _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max):
+    """An uncertain first contact whose bracket [lo, hi] stayed wide, settled by proving the pair separate
+    over its start in rational arithmetic (:mod:`mjccd.exact_stretch`), in rounds.
+
+    Each round proves what it can from the low end; then the double solver
+    is run again from the proven end (:func:`_solve_pieces` with
+    ``t_start``), where it may decide what it could not from further back.
+    All of [lo, hi] proven: no contact (``hi`` is the end of the last
+    interval that may hold one, or t_max).  A first contact found, by the
+    double solver's certified answer from the proven end or, at a piece
+    narrower than TIME_TOL whose end is exactly not separate, by bisection
+    on the exact status: the double's intervals before it are dropped.
+    Else the proven part narrows the bracket from below.
+    """
+    lo, hi = solution.bracket
+    pair = _ExactPair(a, motion_a, b, motion_b)
+    poly = None if hi - lo <= TIME_TOL else pair.polynomial()
+    if poly is None:
+        return solution
+    start = Fraction(lo)
+    for _ in range(STRETCH_ROUNDS):
+        proven, failed = exact_stretch.separate_until(*poly, start, hi, Fraction(TIME_TOL) / 2, STRETCH_PIECES)
+        if failed is None:
+            return _settled_stretch_none(solution)
+        piece_start, piece_end = failed
+        if piece_end - piece_start <= TIME_TOL and pair.status(piece_end) != 1:
+            found = pair.separation_change(piece_start, piece_end, True)
+            if found is not None:
+                return _with_first_contact(pair, solution, found[0], (piece_start, piece_end), first_only)
+        start = proven
+        window = _solve_pieces(a, motion_a, b, motion_b, t_max, True, _float_below(start))
+        if window.status_at_start == 1 and not window.certified and window.reached < 0.0:
+            window = _refine_exactly(a, motion_a, b, motion_b, window, t_max)
+        if window.status_at_start == 1 and window.certified:
+            if not len(window.intervals):
+                return _settled_stretch_none(solution)
+            return _with_first_contact(pair, solution, float(window.intervals[0, 0]), window.bounds[0, :2],
+                                       first_only)
+    return solution._replace(bracket=(_float_below(start), hi), precision=RATIONAL)
+
+
+def _spurious_dropped(a, motion_a, b, motion_b, solution):
+    """``solution`` without the intervals the exact stretch proof shows separate throughout.
+
+    An interval whose start or end the double solver left in a wide bracket
+    may be a stretch of its rounding band rather than a contact: where the
+    pair is proven separate over the whole bracket of it (entry's low end to
+    exit's high end), it is dropped.  The first interval of a pair not
+    separate at the start is a contact at t = 0 and stays.
+    """
+    pair = _ExactPair(a, motion_a, b, motion_b)
+    poly = pair.polynomial()
+    if poly is None:
+        return solution
+    keep = []
+    for k, box in enumerate(solution.bounds.tolist()):
+        open_ends = max(solution.intervals[k, 0] - box[0], box[1] - solution.intervals[k, 0],
+                        solution.intervals[k, 1] - box[2], box[3] - solution.intervals[k, 1]) > TIME_TOL
+        if open_ends and not (k == 0 and solution.status_at_start != 1):
+            _, failed = exact_stretch.separate_until(*poly, box[0], box[3], Fraction(TIME_TOL) / 2, SPURIOUS_PIECES)
+            if failed is None:
+                continue
+        keep.append(k)
+    if len(keep) == len(solution.intervals):
+        return solution
+    intervals, bounds = solution.intervals[keep], solution.bounds[keep]
+    certified, lo, hi = verdict(intervals, bounds, solution.reached, 1.0)
+    if solution.status_at_start != 1:
+        lo = hi = 0.0
+    first_gone = solution.status_at_start == 1 and keep[:1] != [0]
+    point, normal = solution.point, solution.normal
+    if first_gone:
+        point, normal = pair.touch(float(intervals[0, 0])) if len(intervals) and certified else (None, None)
+    return solution._replace(intervals=intervals, bounds=bounds, point=point, normal=normal,
+                             certified=bool(certified), bracket=(float(lo), float(hi)), precision=RATIONAL)
+
+
+def _settled_stretch_none(solution):
+    """``solution`` proven free of contact after all."""
+    return solution._replace(intervals=np.empty((0, 2)), bounds=np.empty((0, 4)), point=None, normal=None,
+                             certified=True, bracket=(-1.0, -1.0), reached=-1.0, precision=RATIONAL)
+
+
+def _with_first_contact(pair, solution, t, entry, first_only):
+    """``solution`` with its first contact proven at t, inside the proven bracket ``entry`` (lo, hi)."""
+    entry = [_float_below(Fraction(entry[0])), float(entry[1])]
+    if first_only:
+        intervals, bounds = np.array([[t, t]]), np.array([entry + [t, t]])
+    else:  # the double's intervals hold every possible contact: t lies in one of them
+        keep = [k for k in range(len(solution.intervals)) if solution.bounds[k, 3] >= t]
+        if not keep or solution.bounds[keep[0], 0] > t:
+            return solution._replace(bracket=(entry[0], solution.bracket[1]), precision=RATIONAL)
+        intervals, bounds = solution.intervals[keep].copy(), solution.bounds[keep].copy()
+        intervals[0, 0] = t
+        intervals[0, 1] = max(intervals[0, 1], t)
+        bounds[0, :2] = entry
+    certified, lo, hi = verdict(intervals, bounds, solution.reached, 1.0)
+    point, normal = pair.touch(t)
+    return solution._replace(intervals=intervals, bounds=bounds, point=point, normal=normal,
+                             certified=bool(certified), bracket=(float(lo), float(hi)), precision=RATIONAL)
+
+
 def _unsettled(a, motion_a, b, motion_b, t_max, first_only):
     """The double-precision :class:`PairSolution` of a pair, before the rational tier."""
     if _two_poses(a, motion_a, b, motion_b):
@@ -2039,8 +2184,13 @@ def _settled(a, motion_a, b, motion_b, solution, first_only, t_max):
         solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
     if not solution.certified and solution.reached < 0.0:
         solution = _refine_exactly(a, motion_a, b, motion_b, solution, t_max)
+    if not solution.certified and not first_only and solution.reached < 0.0:
+        solution = _spurious_dropped(a, motion_a, b, motion_b, solution)
     if not solution.certified and solution.status_at_start == 1:
         solution = _held_bracket(a, motion_a, b, motion_b, solution, t_max)
+        solution = _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max)
+        if not solution.certified and not first_only and solution.reached < 0.0:
+            solution = _spurious_dropped(a, motion_a, b, motion_b, solution)
     return solution
 
 
@@ -2072,10 +2222,10 @@ def _contact(solution):
     if solution.status_at_start != 1:
         return Contact(0.0, None, None, status)
     if len(solution.intervals):
-        time = float(solution.intervals[0, 0])
         if solution.certified:
-            return Contact(time, solution.point, solution.normal, status)
-        return Contact(time, solution.point, solution.normal, status, "uncertain", solution.bracket)
+            return Contact(float(solution.intervals[0, 0]), solution.point, solution.normal, status)
+        lo, hi = solution.bracket  # a possible contact at lo, the low end of the bracket
+        return Contact(lo, solution.point, solution.normal, status, "uncertain", (lo, hi))
     if solution.certified:
         return None
     lo, hi = solution.bracket

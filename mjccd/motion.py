@@ -587,10 +587,20 @@ class _WMotion(Motion):
         return (*quadric_from_w(G, h, g, radii), w_quadric_errors(G, h, g, radii))
 
     def exact_quadric_at(self, radii, t):
+        return self.polynomial_quadric_at(radii, t)
+
+    def polynomial_quadric_at(self, radii, t):
+        """The quadric of W at the rational t, exactly: the value of a polynomial in t of degree
+        :meth:`quadric_degree` (a subclass's :meth:`exact_quadric_at` may scale it by other factors)."""
         G, h, g = self._w
         return exact.quadric_from_w_exact([[_exact_bernstein(G[i, j], t) for j in range(3)] for i in range(3)],
                                           [_exact_bernstein(h[i], t) for i in range(3)],
                                           _exact_bernstein(g, t), radii)
+
+    def quadric_degree(self):
+        """Degree in t of :meth:`polynomial_quadric_at`'s entries (products of two entries of W)."""
+        G, h, g = self._w
+        return 2 * (max(G.shape[2], h.shape[1], g.shape[0]) - 1)
 
     def anchor(self):
         G, h, _ = self._w
@@ -777,7 +787,12 @@ class Affine(_TwoPoses, Motion):
 
 
 class LinearAffine(_WMotion):
-    """``x = ((1 - t) M0 + t M1) [y; 1]`` with 3x4 matrices: every point moves on a line."""
+    """``x = ((1 - t) M0 + t M1) [y; 1]`` with 3x4 matrices: every point moves on a line.
+
+    Refused (InputError) when det L(t) of the linear part changes sign on
+    [0, 1] or comes within 1e-12 of singular: min |det L(t)| <= 1e-12 *
+    max(|L0|_F, |L1|_F)^3, a body flattened below 1e-12 of its size.
+    """
 
     kind = "linear_affine"
 

@@ -607,3 +607,43 @@ def test_integer_quadric_is_a_positive_multiple_of_the_rational_one():
             q = [Fraction(float(x)) * (1 - t) + Fraction(float(y)) * t for x, y in zip(q, rng.normal(size=4))]
         assert (exact._integer_matrix(exact.quadric_exact_integer(r, p, q))
                 == exact._integer_matrix(exact.quadric_exact(r, p, q))), k
+
+
+# ---------------------------------------------------------------- stretches proven separate (mjccd.exact_stretch)
+
+
+def test_bernstein_of_values_is_exact():
+    from mjccd.exact_stretch import _bernstein_of_values
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 7, 24):
+        power = [Fraction(int(x), int(d)) for x, d in zip(rng.integers(-9, 10, n + 1), rng.integers(1, 6, n + 1))]
+        p = lambda s: sum(c * s ** j for j, c in enumerate(power))  # noqa: E731
+        b = _bernstein_of_values([p(Fraction(k, n)) for k in range(n + 1)])
+        s = Fraction(3, 7)
+        assert sum(b[i] * math.comb(n, i) * s ** i * (1 - s) ** (n - i) for i in range(n + 1)) == p(s)
+
+
+def _sphere_pair(gap_end):
+    """Unit sphere static at 0 and a unit sphere moving along x from centre 3 to 2 + gap_end: the exact
+    quadrics of their W forms (polynomial in t) and the degree."""
+    from mjccd.ccd import _ExactPair
+    a, b = mjccd.Ellipsoid([1.0, 1.0, 1.0]), mjccd.Ellipsoid([1.0, 1.0, 1.0])
+    moving = mjccd.Rigid([3.0, 0.0, 0.0], [1.0, 0, 0, 0], [2.0 + gap_end, 0.0, 0.0], [1.0, 0, 0, 0])
+    return _ExactPair(a, mjccd.Static([0.0, 0.0, 0.0], [1.0, 0, 0, 0]), b, moving).polynomial()
+
+
+def test_a_stretch_is_proven_separate_exactly_up_to_the_contact():
+    """Unit spheres: clear by 1/4 at the end, [0, 1] is proven at once; touching at t = 1, [0, 1/2] is
+    and [0, 1] is not, and halving proves all but the finest piece before 1; meeting at t = 1/2, nothing
+    past 1/2 is ever proven."""
+    from mjccd.exact_stretch import positive_through, separate_until
+    A, B, degree = _sphere_pair(0.25)   # clear by 1/4 at t = 1
+    assert positive_through(A, B, degree, Fraction(0), Fraction(1))
+    A, B, degree = _sphere_pair(0.0)    # touching at t = 1
+    assert positive_through(A, B, degree, Fraction(0), Fraction(1, 2))
+    assert not positive_through(A, B, degree, Fraction(0), Fraction(1))
+    proven, failed = separate_until(A, B, degree, 0.0, 1.0, Fraction(1, 2 ** 20), 200)
+    assert failed is not None and failed[1] == 1 and Fraction(1) - proven <= Fraction(1, 2 ** 20)
+    A, B, degree = _sphere_pair(-1.0)   # centre distance 3 - 2 t: touching at t = 1/2
+    proven, failed = separate_until(A, B, degree, 0.0, 1.0, Fraction(1, 2 ** 10), 200)
+    assert proven <= Fraction(1, 2) and failed is not None

@@ -38,8 +38,8 @@ def main(argv=None):
     rows = collections.defaultdict(lambda: collections.Counter())
     times = collections.defaultdict(list)
     for case in cases:
-        a, ma = _body(case, "a")
-        b, mb = _body(case, "b")
+        a, ma, _ = _body(case, "a")
+        b, mb, _ = _body(case, "b")
         solve_motions(a, ma, b, mb)  # compile / warm up
         start = time.perf_counter()
         solution = solve_motions(a, ma, b, mb)

@@ -23,6 +23,7 @@ edges u = 0 and u = 1, and at each time t the pair is separate exactly when
 ``first_contact`` and ``collision_intervals`` are the public entry points;
 everything below them runs in numba on plain arrays.
 """
+import math
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -1755,22 +1756,35 @@ def _turned(quadric, R):
     out[:3, :3] = aR.T @ (err[:3, :3] + gamma(12) * Pm) @ aR
     out[:3, 3] = out[3, :3] = aR.T @ (err[:3, 3] + gamma(6) * Um)
     out[3, 3] = err[3, 3]
-    turned_P = np.ascontiguousarray(np.einsum("ki,klm,lj->ijm", R, P, R))
+    turned_P = np.ascontiguousarray(np.einsum("ki,kjm->ijm", R, np.einsum("klm,lj->kjm", P, R)))
     return turned_P, np.ascontiguousarray(np.einsum("ki,km->im", R, U)), s, out
+
+
+def _solved_piece(quadric_a, quadric_b, length, first_only):
+    """(balanced pencil, its frame's origin, :func:`solve_balanced`'s values) of a piece's two quadrics."""
+    pencil, err, frame_origin = prepare_pair(*quadric_a, *quadric_b, length)
+    return pencil, frame_origin, solve_balanced(*pencil, err, 1.0, first_only)
 
 
 def _turned_to_thinner(quadric_a, quadric_b):
     """(R, A, B): both bounded quadrics turned to the principal axes of the thinner body halfway through the
-    piece, as the two-pose kernel turns the frame to A's axes (docs/method.md): the large curvatures of a
-    body flattened near a singular linear part then sit apart from its small ones instead of swamping
-    them.  Any invertible R keeps every status and time; the rounding of the turn joins the error bounds."""
-    def axes(P):
-        middle = np.array([[bz.evaluate(P[i, j].copy(), 0.5) for j in range(3)] for i in range(3)])
-        values, vectors = np.linalg.eigh(0.5 * (middle + middle.T))
-        return abs(values[0]) / max(abs(values[2]), 1e-300), vectors
-    roundness_a, axes_a = axes(quadric_a[0])
-    roundness_b, axes_b = axes(quadric_b[0])
-    R = axes_a if roundness_a <= roundness_b else axes_b
+    piece when one is thin (above THIN:1; else R is None), as the two-pose kernel turns the frame to A's axes
+    (docs/method.md): the large curvatures of a body flattened near a singular linear part then sit apart
+    from its small ones instead of swamping them.  Any invertible R keeps every status and time; the
+    rounding of the turn joins the error bounds."""
+    def middle(P):  # P at t = 1/2: the Bernstein coefficients weighted by C(n, i) / 2^n
+        n = P.shape[2] - 1
+        M = P @ (np.array([math.comb(n, i) for i in range(n + 1)]) / 2.0 ** n)
+        return 0.5 * (M + M.T)
+
+    def roundness(M):
+        values = np.linalg.eigvalsh(M)
+        return abs(values[0]) / max(abs(values[2]), 1e-300)
+    middle_a, middle_b = middle(quadric_a[0]), middle(quadric_b[0])
+    roundness_a, roundness_b = roundness(middle_a), roundness(middle_b)
+    if min(roundness_a, roundness_b) > 1.0 / (THIN * THIN):  # neither is thin: the turn buys nothing
+        return None, quadric_a, quadric_b
+    R = np.linalg.eigh(middle_a if roundness_a <= roundness_b else middle_b)[1]
     return R, _turned(quadric_a, R), _turned(quadric_b, R)
 
 
@@ -1793,11 +1807,16 @@ def _solve_pieces(a, motion_a, b, motion_b, t_max, first_only, t_start=0.0):
     reached = -1.0
     precision = DOUBLE
     for t0, t1 in zip(edges[:-1], edges[1:]):
-        turn, quadric_a, quadric_b = _turned_to_thinner(local_a.quadric_bounded_on(a.radii, t0, t1),
-                                                        local_b.quadric_bounded_on(b.radii, t0, t1))
-        pencil, err, frame_origin = prepare_pair(*quadric_a, *quadric_b, length)
-        code, piece, bounds, u, piece_reached, tier = solve_balanced(*pencil, err, 1.0,
-                                                                     first_only and not intervals)
+        quadric_a = local_a.quadric_bounded_on(a.radii, t0, t1)
+        quadric_b = local_b.quadric_bounded_on(b.radii, t0, t1)
+        turn, (pencil, frame_origin, solved) = np.eye(3), _solved_piece(quadric_a, quadric_b, length,
+                                                                        first_only and not intervals)
+        if solved[0] == 0 or not verdict(solved[1], solved[2], solved[4], 1.0)[0]:
+            turned, turned_a, turned_b = _turned_to_thinner(quadric_a, quadric_b)
+            if turned is not None:  # undecided as given: again in the thinner body's axes
+                turn, (pencil, frame_origin, solved) = turned, _solved_piece(turned_a, turned_b, length,
+                                                                             first_only and not intervals)
+        code, piece, bounds, u, piece_reached, tier = solved
         precision = max(precision, int(tier))
         if status0 is None:
             status0 = int(code)

@@ -498,23 +498,28 @@ def spin_cases(seed=4404):
 
 
 # ------------------------------------------------------------------ family: near-singular linear_affine
+def _flattening(rng, eps, draw_ts, reach):
+    """(L, ts, c0, c1, motion) of x = L(t) y + c(t), L(t) = U [[s1,0,0],[0,s2,b(t-ts)],[0,-b(t-ts),eps]] V^T,
+    the centre lerped from c0 to c1 (|c1 - c0| drawn from ``reach``), ts from ``draw_ts()``."""
+    U, V = np.array(rot_matrix(_unit(rng, 4))), np.array(rot_matrix(_unit(rng, 4)))
+    s1, s2, b = rng.uniform(0.7, 1.3), rng.uniform(0.7, 1.3), rng.uniform(0.5, 1.5)
+    ts = draw_ts()
+    c0 = np.array([rng.uniform(-0.5, 0.5) for _ in range(3)])
+    c1 = c0 + np.array(_unit(rng)) * rng.uniform(*reach)
+
+    def L(t):
+        return U @ np.array([[s1, 0, 0], [0, s2, b * (t - ts)], [0, -b * (t - ts), eps]]) @ V.T
+    start, end = [np.hstack([L(t), ((1 - t) * c0 + t * c1)[:, None]]).tolist() for t in (0.0, 1.0)]
+    return L, ts, c0, c1, {'type': 'linear_affine', 'start': start, 'end': end}
+
+
 def singular_cases(seed=4505):
     """x = L(t) y + c(t) with L(t) = U [[s1,0,0],[0,s2,b(t-ts)],[0,-b(t-ts),eps]] V^T: det > 0 on
     [0, 1], smallest singular value about eps at t = ts (the body is flattened to a disk)."""
     rng = random.Random(seed)
     out = []
     for k, (eps, kind) in enumerate([(1e-3, 'static'), (1e-4, 'rigid'), (1e-5, 'static')]):
-        U, V = np.array(rot_matrix(_unit(rng, 4))), np.array(rot_matrix(_unit(rng, 4)))
-        s1, s2, b = rng.uniform(0.7, 1.3), rng.uniform(0.7, 1.3), rng.uniform(0.5, 1.5)
-        ts = rng.uniform(0.3, 0.7)
-        c0 = np.array([rng.uniform(-0.5, 0.5) for _ in range(3)])
-        c1 = c0 + np.array(_unit(rng)) * rng.uniform(1.5, 2.5)
-
-        def M(t):
-            D = np.array([[s1, 0, 0], [0, s2, b * (t - ts)], [0, -b * (t - ts), eps]])
-            return U @ D @ V.T
-        mats = [np.hstack([M(t), ((1 - t) * c0 + t * c1)[:, None]]).tolist() for t in (0.0, 1.0)]
-        ma = {'type': 'linear_affine', 'start': mats[0], 'end': mats[1]}
+        M, ts, c0, c1, ma = _flattening(rng, eps, lambda: rng.uniform(0.3, 0.7), (1.5, 2.5))
         ra = _radii(rng, 0.1, 0.35)
         rb = _radii(rng, 0.08, 0.25)
         centre = lambda t: list((1 - t) * c0 + t * c1)                          # noqa: E731
@@ -543,17 +548,7 @@ def singular_late_cases(seed=4506):
     rng = random.Random(seed)
     out = []
     for k, eps in enumerate([1e-4, 1e-5, 1e-6, 1e-7] * 2):
-        U, V = np.array(rot_matrix(_unit(rng, 4))), np.array(rot_matrix(_unit(rng, 4)))
-        s1, s2, b = rng.uniform(0.7, 1.3), rng.uniform(0.7, 1.3), rng.uniform(0.5, 1.5)
-        ts = 0.5 if k % 2 else rng.uniform(0.3, 0.5)
-        c0 = np.array([rng.uniform(-0.5, 0.5) for _ in range(3)])
-        c1 = c0 + np.array(_unit(rng)) * rng.uniform(0.5, 1.5)
-
-        def M(t):
-            D = np.array([[s1, 0, 0], [0, s2, b * (t - ts)], [0, -b * (t - ts), eps]])
-            return U @ D @ V.T
-        mats = [np.hstack([M(t), ((1 - t) * c0 + t * c1)[:, None]]).tolist() for t in (0.0, 1.0)]
-        ma = {'type': 'linear_affine', 'start': mats[0], 'end': mats[1]}
+        _, ts, c0, c1, ma = _flattening(rng, eps, lambda: 0.5 if k % 2 else rng.uniform(0.3, 0.5), (0.5, 1.5))
         ra, rb = _radii(rng, 0.1, 0.35), _radii(rng, 0.08, 0.25)
         tc = ts + rng.uniform(0.15, 0.4)
         c = _add(list((1 - tc) * c0 + tc * c1), _unit(rng), rng.uniform(0.3, 1.2) * max(rb))

@@ -1872,6 +1872,8 @@ class _ExactPair:
 
     def __init__(self, a, motion_a, b, motion_b):
         self.a, self.b = a, b
+        self.motion_a, self.motion_b = motion_a, motion_b
+        self._polynomial = None
         self.origin = np.asarray(motion_a.anchor(), float)
         self.local_a, self.local_b = motion_a.translated(self.origin), motion_b.translated(self.origin)
 
@@ -1919,6 +1921,12 @@ class _ExactPair:
         :mod:`mjccd.exact_stretch`; None when a motion has no scaled inverse (the affine interpolant)."""
         if not all(hasattr(m, "polynomial_quadric_at") for m in (self.local_a, self.local_b)):
             return None
+        if self._polynomial is None:
+            self._polynomial = self._polynomial_quadrics()
+        return self._polynomial
+
+    def _polynomial_quadrics(self):
+        """(A(t), B(t), degree), each evaluation kept."""
         cache = {}
 
         def quadrics(t):
@@ -1962,7 +1970,7 @@ def _settled_event(pair, t, lo, hi, separate_at_lo, interval, inside, t_max):
     return None if found is None else (found[0], found[1], found[0], found[0])
 
 
-def _refine_exactly(a, motion_a, b, motion_b, solution, t_max):
+def _refine_exactly(pair, solution, t_max):
     """Events whose proven bracket is wider than TIME_TOL, settled by bisection on the exact status.
 
     Double precision proved the pair separate before each start bracket and
@@ -1974,7 +1982,6 @@ def _refine_exactly(a, motion_a, b, motion_b, solution, t_max):
     status does not confirm (a graze inside the rounding band that may be a
     miss) stays uncertain.
     """
-    pair = _ExactPair(a, motion_a, b, motion_b)
     intervals = solution.intervals.copy()
     bounds = solution.bounds.copy()
     certified = True
@@ -2002,7 +2009,7 @@ def _refine_exactly(a, motion_a, b, motion_b, solution, t_max):
                    bracket=(float(lo), float(hi)), precision=RATIONAL)
 
 
-def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
+def _settle_touching_start(pair, solution, first_only):
     """A pair the double status calls touching at t = 0 (inside its rounding band), settled in rational arithmetic.
 
     Touching or overlapping: the double answer stands.  Separate (e.g. a gap
@@ -2010,7 +2017,6 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
     status first leaves "separate" inside the double's first interval,
     bracketed by probes end * 2^-k and bisected on dyadic times.
     """
-    pair = _ExactPair(a, motion_a, b, motion_b)
     code = pair.status(Fraction(0))
     solution = solution._replace(precision=RATIONAL)
     if code != 1:
@@ -2040,7 +2046,7 @@ def _settle_touching_start(a, motion_a, b, motion_b, solution, first_only):
                    bracket=(t, t), certified=bool(certified))
 
 
-def _held_bracket(a, motion_a, b, motion_b, solution, t_max):
+def _held_bracket(pair, solution, t_max):
     """An uncertain ``solution`` whose bracket reaches a time at which the pair is exactly not separate.
 
     The double solver proves the pair separate up to the bracket's low end;
@@ -2055,10 +2061,9 @@ def _held_bracket(a, motion_a, b, motion_b, solution, t_max):
     inside the bracket.
     """
     lo, hi = solution.bracket
-    pair = _ExactPair(a, motion_a, b, motion_b)
     if hi - lo <= TIME_TOL or pair.status(Fraction(hi)) != 1:  # settled, or a proven end
         return solution
-    full = _unsettled(a, motion_a, b, motion_b, t_max, False)
+    full = _unsettled(pair.a, pair.motion_a, pair.b, pair.motion_b, t_max, False)
     times = sorted({t for row, box in zip(full.intervals.tolist(), full.bounds.tolist())
                     for t in (box[1], row[0], 0.5 * (row[0] + row[1]), row[1]) if hi < t <= t_max})
     for t in times[:HELD_PROBES]:
@@ -2076,7 +2081,7 @@ def _float_below(x):
     return f if Fraction(f) <= x else float(np.nextafter(f, -np.inf))
 
 
-def _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max):
+def _settled_stretch(pair, solution, first_only, t_max):
     """An uncertain first contact whose bracket [lo, hi] stayed wide, settled by proving the pair separate
     over its start in rational arithmetic (:mod:`mjccd.exact_stretch`), in rounds.
 
@@ -2091,7 +2096,6 @@ def _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max):
     Else the proven part narrows the bracket from below.
     """
     lo, hi = solution.bracket
-    pair = _ExactPair(a, motion_a, b, motion_b)
     poly = None if hi - lo <= TIME_TOL else pair.polynomial()
     if poly is None:
         return solution
@@ -2106,9 +2110,9 @@ def _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max):
             if found is not None:
                 return _with_first_contact(pair, solution, found[0], (piece_start, piece_end), first_only)
         start = proven
-        window = _solve_pieces(a, motion_a, b, motion_b, t_max, True, _float_below(start))
+        window = _solve_pieces(pair.a, pair.motion_a, pair.b, pair.motion_b, t_max, True, _float_below(start))
         if window.status_at_start == 1 and not window.certified and window.reached < 0.0:
-            window = _refine_exactly(a, motion_a, b, motion_b, window, t_max)
+            window = _refine_exactly(pair, window, t_max)
         if window.status_at_start == 1 and window.certified:
             if not len(window.intervals):
                 return _settled_stretch_none(solution)
@@ -2117,7 +2121,7 @@ def _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max):
     return solution._replace(bracket=(_float_below(start), hi), precision=RATIONAL)
 
 
-def _spurious_dropped(a, motion_a, b, motion_b, solution):
+def _spurious_dropped(pair, solution):
     """``solution`` without the intervals the exact stretch proof shows separate throughout.
 
     An interval whose start or end the double solver left in a wide bracket
@@ -2126,7 +2130,6 @@ def _spurious_dropped(a, motion_a, b, motion_b, solution):
     exit's high end), it is dropped.  The first interval of a pair not
     separate at the start is a contact at t = 0 and stays.
     """
-    pair = _ExactPair(a, motion_a, b, motion_b)
     poly = pair.polynomial()
     if poly is None:
         return solution
@@ -2198,18 +2201,20 @@ def solve_motions(a, motion_a, b, motion_b, t_max=1.0, first_only=False):
 
 
 def _settled(a, motion_a, b, motion_b, solution, first_only, t_max):
-    """The double-precision ``solution`` with what it left open settled in rational arithmetic."""
+    """The double-precision ``solution`` with what it left open settled in rational arithmetic (one
+    :class:`_ExactPair` for every step, so its exact quadrics are formed once)."""
+    pair = _ExactPair(a, motion_a, b, motion_b)
     if solution.status_at_start == 0:
-        solution = _settle_touching_start(a, motion_a, b, motion_b, solution, first_only)
+        solution = _settle_touching_start(pair, solution, first_only)
     if not solution.certified and solution.reached < 0.0:
-        solution = _refine_exactly(a, motion_a, b, motion_b, solution, t_max)
+        solution = _refine_exactly(pair, solution, t_max)
     if not solution.certified and not first_only and solution.reached < 0.0:
-        solution = _spurious_dropped(a, motion_a, b, motion_b, solution)
+        solution = _spurious_dropped(pair, solution)
     if not solution.certified and solution.status_at_start == 1:
-        solution = _held_bracket(a, motion_a, b, motion_b, solution, t_max)
-        solution = _settled_stretch(a, motion_a, b, motion_b, solution, first_only, t_max)
+        solution = _held_bracket(pair, solution, t_max)
+        solution = _settled_stretch(pair, solution, first_only, t_max)
         if not solution.certified and not first_only and solution.reached < 0.0:
-            solution = _spurious_dropped(a, motion_a, b, motion_b, solution)
+            solution = _spurious_dropped(pair, solution)
     return solution
 
 

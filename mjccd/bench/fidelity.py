@@ -26,6 +26,7 @@ standing for meshes only) and in ellipsoid mode with the one-per-body fit and th
 A step in which MuJoCo meets a bad state restarts the episode from the reset state (and is not counted).
 """
 import argparse
+import functools
 import os
 import platform
 import statistics
@@ -108,25 +109,28 @@ def wrapped(env, kind, ellipsoids, mode):
 
 
 def time_env_steps(name, kind, ellipsoids, mode, steps, seed):
-    """Median seconds per control step over chunks of CHUNK control steps: (plain env, wrapped env)."""
-    out = []
+    """Median seconds per control step over chunks of CHUNK control steps: (plain env, wrapped env).
+
+    The two environments take their chunks in turn, so that a machine speeding up or slowing down during the
+    run weighs on both alike."""
+    runs = []
     for wrap in (False, True):
         env = make_env(name, seed)[0]
         if wrap:
             env = wrapped(env, kind, ellipsoids, mode)
         actions = random_actions(env, kind, steps + 1, seed)
-        step = env.step
-        step(actions[0])  # compiled and set up before the timed steps
-        chunks = []
-        for k in range(1, steps - CHUNK + 2, CHUNK):
+        env.step(actions[0])  # compiled and set up before the timed steps
+        runs.append((env, actions, []))
+    for k in range(1, steps - CHUNK + 2, CHUNK):
+        for env, actions, chunks in runs:
+            step = env.step
             begin = time.perf_counter()
             for action in actions[k:k + CHUNK]:
                 result = step(action)
                 if kind == "gymnasium" and (result[2] or result[3]):
                     env.reset(seed=seed)
             chunks.append((time.perf_counter() - begin) / CHUNK)
-        out.append(statistics.median(chunks) if chunks else float("nan"))
-    return tuple(out)
+    return tuple(statistics.median(chunks) if chunks else float("nan") for _, _, chunks in runs)
 
 
 def setups(model):
@@ -203,6 +207,7 @@ class Tally:
         self.gaps = []
         self.missed = {}
         self.unchecked = {}
+        self.contacts = self.uncertain = self.pointless = 0  # contacts reported; uncertain ones; uncertain, no point
 
 
 def _name(model, g):
@@ -260,6 +265,10 @@ def check_run(model, start, ellipsoids, mode, controls, tally):
                 names = (_name(model, g1), _name(model, g2))
                 tally.missed[names] = tally.missed.get(names, 0) + 1
         for c in report.contacts:
+            tally.contacts += 1
+            if c.certainty != "certified":
+                tally.uncertain += 1
+                tally.pointless += c.point is None or c.normal is None
             if c.status_at_start != "separate":
                 continue
             if mode == "geoms":
@@ -277,8 +286,9 @@ def check_run(model, start, ellipsoids, mode, controls, tally):
 
 
 def time_steps(model, start, controls, ellipsoids, mode):
-    """Median seconds per MuJoCo step over chunks of CHUNK steps: (bare mj_step, CCDMonitor.step)."""
-    out = []
+    """Median seconds per MuJoCo step over chunks of CHUNK steps: (bare mj_step, CCDMonitor.step), the two
+    taking their chunks in turn."""
+    runs = []
     for monitored in (False, True):
         data = mujoco.MjData(model)
         mujoco.mj_copyData(data, model, start)
@@ -288,17 +298,16 @@ def time_steps(model, start, controls, ellipsoids, mode):
                 step = CCDMonitor(model, data, ellipsoids, mode=mode).step
             step()  # compiled and set up before the timed steps
         else:
-            def step():
-                mujoco.mj_step(model, data)
-        chunks = []
-        for k in range(0, len(controls) - CHUNK + 1, CHUNK):
+            step = functools.partial(mujoco.mj_step, model, data)
+        runs.append((data, step, []))
+    for k in range(0, len(controls) - CHUNK + 1, CHUNK):
+        for data, step, chunks in runs:
             begin = time.perf_counter()
             for ctrl in controls[k:k + CHUNK]:
                 data.ctrl[:] = ctrl
                 step()
             chunks.append((time.perf_counter() - begin) / CHUNK)
-        out.append(statistics.median(chunks) if chunks else float("nan"))
-    return tuple(out)
+    return tuple(statistics.median(chunks) if chunks else float("nan") for _, _, chunks in runs)
 
 
 def measure(name, steps, env_steps, seed, progress):
@@ -347,18 +356,23 @@ def markdown(rows, skipped, args, command, seconds):
              f"within 1 mm (1 cm), by MuJoCo's `mj_geomDistance` at the state MuJoCo interpolates "
              f"(`mj_differentiatePos`, `mj_integratePos`) at the contact's fraction of the step. Cost: "
              f"{args.env_steps} control steps of the wrapped environment over the plain one, medians of {CHUNK}-step "
-             f"chunks; `CCDMonitor.step` over a bare `mj_step` for context.", "",
+             f"chunks, the two taking their chunks in turn; `CCDMonitor.step` over a bare `mj_step` (likewise) "
+             f"for context. Uncertain: the share of all contacts "
+             f"reported (every pair, every step) that are `uncertain`, and how many of those lack a point or "
+             f"normal.", "",
              "| env | mode | fit | geoms / ellipsoids | pairs | recall | unchecked | precision @ 1 mm "
-             "| precision @ 1 cm | median gap (mm) | plain env (ms/step) | wrapped env (ms/step) | wrapped / plain "
-             "| monitor / mj_step |",
-             "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+             "| precision @ 1 cm | median gap (mm) | uncertain | uncertain without point | plain env (ms/step) "
+             "| wrapped env (ms/step) | wrapped / plain | monitor / mj_step |",
+             "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: "
+             "| ---: |"]
     for r in rows:
         t = r["tally"]
         gap = f"{statistics.median(t.gaps) * 1e3:.2f}" if t.gaps else "-"
         unchecked = str(sum(t.unchecked.values())) if r["mode"] == "geoms" else "-"
         lines.append(f"| {r['env']} | {r['mode']} | {r['fit']} | {r['parts']} | {r['pairs']} | "
                      f"{_share(t.recalled, t.new_contacts)} | {unchecked} | {_share(t.precise[0], t.first_contacts)} | "
-                     f"{_share(t.precise[1], t.first_contacts)} | {gap} | {r['plain_ms']:.3f} | {r['wrapped_ms']:.3f} | "
+                     f"{_share(t.precise[1], t.first_contacts)} | {gap} | {_share(t.uncertain, t.contacts)} | "
+                     f"{t.pointless} | {r['plain_ms']:.3f} | {r['wrapped_ms']:.3f} | "
                      f"{r['wrapped_ms'] / r['plain_ms']:.2f} | {r['bare_ratio']:.2f} |")
     for what, key in (("Missed new contacts", "missed"), ("MuJoCo contacts of pairs geoms mode does not check",
                                                            "unchecked")):

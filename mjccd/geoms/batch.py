@@ -418,3 +418,52 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
         if best < 0 or t < best_t:
             best, best_t = k, t
     return best
+
+
+# tally's counts, in this order, and what it answers when a pair is left to the ellipsoid solver
+TALLIES = ("sphere_culled", "too_slow", "solved_exactly", "overlapping_t0", "colliding", "uncertain")
+NEEDS_SOLVER = -2
+
+
+@_jit
+def tally(out, new_only, counts):
+    """The first contact and the counts of :func:`step_pairs`' answers ``out`` (P, kernel.OUT), read as
+    :meth:`mjccd.mujoco.geoms.GeomChecker.check_poses` reads each row: counts (6,) = :data:`TALLIES`; returns
+    the row of the first contact (earliest time, then lowest row; a pair not separate at the start at time 0,
+    an uncertain one at its bracket's start), -1 when none, or :data:`NEEDS_SOLVER` when a row is not the
+    kernel's own answer (left to the ellipsoid solver, or a workspace overflow): the caller then reads every
+    row itself.
+
+    One pass over the rows in compiled code: a small model's step is cheaper than reading its rows in
+    Python."""
+    for i in range(counts.shape[0]):
+        counts[i] = 0
+    best, best_t = -1, 0.0
+    for k in range(out.shape[0]):
+        o = out[k]
+        failed = o[kn.FAILED]
+        if failed == FILTERED:
+            counts[0] += 1
+            continue
+        if failed == TOO_SLOW:
+            counts[1] += 1
+            continue
+        if failed == kn.NOT_HANDLED or failed == kn.PARTIAL or failed == kn.OVERFLOW:
+            return NEEDS_SOLVER
+        counts[2] += 1
+        if o[kn.STATUS] != 1.0:
+            counts[3] += 1
+            if new_only:
+                continue
+            t = 0.0
+        elif o[kn.LO] < 0.0:
+            continue
+        else:
+            certain = o[kn.CERTIFIED] > 0.0
+            if not certain:
+                counts[5] += 1
+            t = o[kn.TIME] if certain else o[kn.LO]
+        counts[4] += 1
+        if best < 0 or t < best_t:
+            best, best_t = k, t
+    return best

@@ -553,7 +553,10 @@ def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     ra = sa[0] if rounded(ka) else 0.0
     rb = sb[0]
     _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, rb, ra, 0, rb)
-    if kb == CAPSULE:
+    # a plane's inflated half-space is convex and a segment's height above it linear along the segment: where
+    # some point of the segment lies in it, an end does, so the ends' systems hold first and the segment's
+    # (bivariate, far dearer) adds nothing
+    if kb == CAPSULE and ka != PLANE:
         dv = fr.direction(W, I, HAB, 0.0, 0.0, 2.0 * sb[1])
         _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], dv, ka, sa, rb, ra, 0, rb, False, True)
         if ka == CYLINDER:

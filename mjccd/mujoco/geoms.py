@@ -51,6 +51,8 @@ KINDS = {int(G.mjGEOM_SPHERE): sy.SPHERE, int(G.mjGEOM_CAPSULE): sy.CAPSULE, int
          int(G.mjGEOM_BOX): sy.BOX, int(G.mjGEOM_ELLIPSOID): sy.ELLIPSOID, int(G.mjGEOM_PLANE): sy.PLANE}
 STATUS = {1: "separate", 0: "touching", -1: "overlapping"}
 BOUND_GROUP = 5  # where mjccd fit writes the bounding ellipsoids
+TALLY_SLOTS = [COUNTER_NAMES.index(name) for name in gb.TALLIES]  # where each of tally's counts goes
+SOLVED_SLOT, UNCERTAIN_SLOT = COUNTER_NAMES.index("solved_exactly"), COUNTER_NAMES.index("uncertain")
 
 
 def _is_bound(model, g):
@@ -137,6 +139,7 @@ class GeomChecker:
         self.body = np.array([r[4] for r in rows], dtype=np.int64)
         self.labels_of_rows = [geom_label(model, g) for g in self.geom_ids]
         self.pairs, self.reason = self._pairs(ellipsoids, pairs, planes)
+        self._pair_labels = self._labels_of_pairs()
         self.min_motion = np.zeros(len(self.pairs))  # see set_min_motion
         self.kinematics = Kinematics(model)
 
@@ -301,6 +304,30 @@ class GeomChecker:
         out = np.empty((npairs, kn.OUT))
         gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
                       bool(new_only), *workspaces(), out)
+        if not all_pairs:
+            tallies = np.empty(len(gb.TALLIES), dtype=np.int64)
+            first = gb.tally(out, bool(new_only), tallies)
+            if first != gb.NEEDS_SOLVER:
+                return self.tallied_report(t0, t1, out, first, tallies)
+        return self.report_of_rows(t0, t1, Q0, Q1, out, all_pairs, new_only)
+
+    def tallied_report(self, t0, t1, out, first, tallies):
+        """The first-contact :class:`StepReport` of a step from time t0 to t1 whose rows ``out`` were all answered
+        by the kernel: ``first`` and ``tallies`` as :func:`mjccd.geoms.batch.tally` gives them."""
+        counts = [0] * len(COUNTER_NAMES)
+        counts[0] = len(out)  # pairs
+        for slot, value in zip(TALLY_SLOTS, tallies.tolist()):
+            counts[slot] = value
+        contact = None
+        if first >= 0:
+            contact = self._contact(t0, t1, first, *self._kernel_contact(first, out[first]))
+        return StepReport(contact, (), counts[0], counts[SOLVED_SLOT], counts[UNCERTAIN_SLOT], False,
+                          StepCounters(counts))
+
+    def report_of_rows(self, t0, t1, Q0, Q1, out, all_pairs, new_only):
+        """The :class:`StepReport` of :func:`~mjccd.geoms.batch.step_pairs`' answers ``out``, row by row (pairs
+        the kernel leaves to the ellipsoid solver solved here)."""
+        npairs = len(out)
         found = []
         counts = dict.fromkeys(COUNTER_NAMES, 0)
         counts["pairs"] = npairs
@@ -328,7 +355,7 @@ class GeomChecker:
             found.append((frac, k, status, point, normal, certain, bracket, elements))
         found.sort(key=lambda f: f[:2])  # by time, then pair: the first of equal ones first
         # a StepContact costs more than the check of a small model's step: only those reported are made
-        contacts = [self._contact(t0, t1, k, frac, point, normal, status, certain, bracket, elements)
+        contacts = [self._contact(t0, t1, k, status, frac, point, normal, certain, bracket, elements)
                     for frac, k, status, point, normal, certain, bracket, elements in found[:None if all_pairs else 1]]
         first = contacts[0] if contacts else None
         return StepReport(first, tuple(contacts) if all_pairs else (), counts["pairs"], counts["solved_exactly"],
@@ -377,13 +404,20 @@ class GeomChecker:
         certain = c.certainty == "certified"
         return ("separate", float(c.time), c.point, c.normal, certain, None if certain else c.bracket, c.elements)
 
-    def _contact(self, t0, t1, k, frac, point, normal, status, certain, bracket, elements):
-        a, b = (int(x) for x in self.pairs[k])
-        ga, gb_ = int(self.geom_ids[a]), int(self.geom_ids[b])
-        ba, bb = int(self.body[a]), int(self.body[b])
+    def _contact(self, t0, t1, k, status, frac, point, normal, certain, bracket, elements):
+        bodies, body_ids, plane, geoms = self._pair_labels[k]
         dt = (t1 - t0) if t0 is not None and t1 is not None and t1 > t0 else self.model.opt.timestep
         start = t0 if t0 is not None else 0.0
         seconds = None if bracket is None else (start + bracket[0] * dt, start + bracket[1] * dt)
-        return StepContact(start + frac * dt, frac, (self.labels[ba], self.labels[bb]), (ba, bb), (-1, -1),
-                           point, normal, status, "certified" if certain else "uncertain", seconds, k,
-                           gb_ if self.kinds[b] == sy.PLANE else -1, (ga, gb_), elements)
+        return StepContact(start + frac * dt, frac, bodies, body_ids, (-1, -1), point, normal, status,
+                           "certified" if certain else "uncertain", seconds, k, plane, geoms, elements)
+
+    def _labels_of_pairs(self):
+        """Per pair: (body names, body ids, plane geom or -1, geom ids), as its contacts name them."""
+        out = []
+        for a, b in self.pairs.tolist():
+            ga, gb_ = int(self.geom_ids[a]), int(self.geom_ids[b])
+            ba, bb = int(self.body[a]), int(self.body[b])
+            out.append(((self.labels[ba], self.labels[bb]), (ba, bb), gb_ if self.kinds[b] == sy.PLANE else -1,
+                        (ga, gb_)))
+        return out

@@ -12,6 +12,8 @@ from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter, 
                                   StepContact, StepCounters, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
 from mjccd.mujoco.geoms import GeomChecker
+from mjccd.geoms.batch import NEEDS_SOLVER
+from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, GeomSteps
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import (MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state, capture,
@@ -185,7 +187,8 @@ class CCDMonitor:
             self.adapter = selected_adapter(model, ellipsoids, pairs, motion, planes)
             self.body_ids, self.pairs, self.labels = self.adapter.body_ids, self.adapter.pairs, self.adapter.labels
             self.plane_pairs = self.adapter.plane_pairs
-        self._geom_poses = None  # geoms mode: (state key bytes, poses) of the last state seen
+        # geoms mode: the poses at both ends of the steps taken (the last end kept as the next start)
+        self._geom_steps = None if self.geoms is None else GeomSteps(self.geoms)
         self.last_report = None
         # no pair and no plane: a step is the step alone (see advance_checked)
         self._idle = len(self.pairs) == 0 and len(self.plane_pairs) == 0
@@ -250,11 +253,11 @@ class CCDMonitor:
             self.last_report = UNSTABLE_REPORT if went_bad(d, self._bad, counts_before[self._bad_bytes], time_before) \
                 else NO_PAIR_REPORT
             return self.last_report
+        if self.geoms is not None:
+            return self._advance_geoms(d, advance, counts, counts_before, time_before, step_name, bodies_current)
         if self._zero_quaternion(d):  # a start state with no rotation: the step is taken, not checked
             advance()
             return self._unstable()
-        if self.geoms is not None:
-            return self._advance_geoms(d, advance, counts, counts_before, time_before, step_name)
         poses = self._poses
         if poses is None and self.adapter.scene is not None:
             poses = self._poses = StepCheck(self)
@@ -290,31 +293,32 @@ class CCDMonitor:
             raise
         return self._reported(report)
 
-    def _poses_of(self, state):
-        """Geoms mode: the checked geoms' poses in ``state`` (those of the last state seen are reused)."""
-        key = state.qpos.tobytes() + state.mocap_pos.tobytes() + state.mocap_quat.tobytes()
-        cached = self._geom_poses
-        if cached is not None and cached[0] == key:
-            return cached[1]
-        poses = self.geoms.geom_poses(state)
-        self._geom_poses = (key, poses)
-        return poses
-
-    def _advance_geoms(self, d, advance, counts, counts_before, time_before, step_name):
-        """advance_checked in geoms mode: the geoms' poses at both ends, then their exact check."""
-        s0 = capture(d)
-        q0 = self._poses_of(s0)
+    def _advance_geoms(self, d, advance, counts, counts_before, time_before, step_name, bodies_current):
+        """advance_checked in geoms mode: the geoms' poses at both ends, then their exact check
+        (:class:`~mjccd.mujoco.geom_steps.GeomSteps`: one compiled call for the first contact)."""
+        steps = self._geom_steps
+        if not steps.begin(d) and self._zero_quaternion(d):  # no rotation at the start: taken, not checked
+            advance()
+            return self._unstable()
         advance()
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
-                or d.time <= time_before or not state_finite(d) or self._zero_quaternion(d):
+                or d.time <= time_before or self._zero_quaternion(d):
             return self._unstable()
-        s1 = capture(d)
-        q1 = self._poses_of(s1)
-        if not (np.isfinite(q0).all() and np.isfinite(q1).all()):
-            self._geom_poses = None
-            self.geoms.check_finite((s0, s1), (q0, q1), self._names(step_name))
-        return self._reported(self.geoms.check_poses(time_before, d.time, q0, q1, all_pairs=self.all_pairs,
-                                                     new_only=not self.report_overlapping))
+        new_only = not self.report_overlapping
+        answer = steps.end(d, bodies_current, new_only, check=not self.all_pairs)
+        if answer == STATE_NOT_FINITE:
+            return self._unstable()
+        if answer == POSES_NOT_FINITE:  # a NaN mocap pose, say (MuJoCo checks none): named in the user's terms
+            states = steps.states(d)
+            steps.forget()
+            self.geoms.check_finite(states, steps.poses, self._names(step_name))
+        if answer == POSES_ONLY:
+            return self._reported(self.geoms.check_poses(time_before, d.time, *steps.poses, all_pairs=True,
+                                                         new_only=new_only))
+        out, tallies = steps.answers
+        if answer == NEEDS_SOLVER:
+            return self._reported(self.geoms.report_of_rows(time_before, d.time, *steps.poses, out, False, new_only))
+        return self._reported(self.geoms.tallied_report(time_before, d.time, out, answer, tallies))
 
     def _zero_quaternion(self, data):
         """True when a joint or mocap quaternion of ``data`` is zero (no rotation: MuJoCo's kinematics would
@@ -339,7 +343,8 @@ class CCDMonitor:
         """The report of a step in which MuJoCo met a bad state: nothing checked, the remembered state dropped."""
         if self.adapter is not None:
             self.adapter.forget()
-        self._geom_poses = None
+        if self._geom_steps is not None:
+            self._geom_steps.forget()
         self.last_report = UNSTABLE_REPORT
         return UNSTABLE_REPORT
 

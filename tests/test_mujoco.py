@@ -455,10 +455,34 @@ def test_monitor_certified_contacts_say_so():
     assert c.fraction == pytest.approx(0.55, abs=1e-9) and monitor.last_report.pairs_uncertain == 0
 
 
-def test_monitor_reports_uncertain_scene_answers(limited_scene):
+def test_monitor_settles_what_the_scene_leaves_uncertain(limited_scene):
+    """The scene's stand-in solver says "somewhere in [0.3, 0.8]"; the core's exact tiers, asked again, find the
+    contact at 0.55 of the step, certified, in the monitor and in the guard's lean step check alike."""
     from mjccd.mujoco.monitor import StepCheck
 
-    m, d = _throw(0.0011)  # contact at 0.55 of the first step; the stand-in solver says "somewhere in [0.3, 0.8]"
+    m, d = _throw(0.0011)
+    monitor = CCDMonitor(m, d, fit_model(m), mode="ellipsoids")
+    c = monitor.step()
+    assert (c.certainty, c.status_at_start, c.bracket) == ("certified", "separate", None)
+    assert c.fraction == pytest.approx(0.55, abs=1e-9) and monitor.last_report.pairs_uncertain == 0
+    m, d = _throw(0.0011)
+    check = StepCheck(CCDMonitor(m, d, fit_model(m), mode="ellipsoids"))
+    check.begin(d)
+    mujoco.mj_step(m, d)
+    check.end_may_touch(d)
+    assert check.first((0.0, float(d.time))).fraction == c.fraction
+
+
+def test_monitor_reports_uncertain_scene_answers(limited_scene, monkeypatch):
+    import mjccd.mujoco.settle as settle
+    from mjccd.ccd import Contact
+    from mjccd.mujoco.monitor import StepCheck
+
+    # contact at 0.55 of the first step; the stand-in solvers, the scene's and the core's, say "somewhere in
+    # [0.3, 0.8]"
+    monkeypatch.setattr(settle, "first_contact", lambda *args, **kwargs: Contact(0.3, None, None, "separate",
+                                                                                 "uncertain", (0.3, 0.8)))
+    m, d = _throw(0.0011)
     monitor = CCDMonitor(m, d, fit_model(m), mode="ellipsoids")
     c = monitor.step()
     assert (c.certainty, c.status_at_start) == ("uncertain", "separate")
@@ -486,7 +510,9 @@ def test_chain_monitor_reports_uncertain_answers(monkeypatch):
     seen = []
     monitor = CCDMonitor(m, d, fit_model(m), motion="chain", on_contact=seen.append)
     c = monitor.step()
-    assert (c.certainty, c.point, c.status_at_start) == ("uncertain", None, "separate")
+    assert (c.certainty, c.status_at_start) == ("uncertain", "separate")
+    # an estimated point: where the two bodies, flying at each other along x, nearly touch at 0.3
+    assert c.point is not None and abs(c.point[1]) < 1e-9 and abs(abs(c.normal[0]) - 1.0) < 1e-9
     assert c.fraction == pytest.approx(0.3, abs=1e-9)
     assert c.bracket == pytest.approx((0.0006, 0.0016), abs=1e-12) and c.time == c.bracket[0]
     assert monitor.last_report.pairs_uncertain == 1 and seen == [c]

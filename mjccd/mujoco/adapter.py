@@ -32,6 +32,7 @@ from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_report_label
 from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error, zero_quaternion_error
+from mjccd.mujoco.settle import estimated_touch, settle
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
 from mjccd.mujoco.warnings import mujoco_warnings
@@ -332,17 +333,41 @@ class ModelAdapter:
         ``all_pairs``, ``new_only`` as in :meth:`check`; a bad pose raises the scene's InputError."""
         scene = self.scene
         if not all_pairs:
-            return self.scene_report(t0, t1, scene.first_pair(p0, p1, new_contacts_only=new_only), p0)
+            return self.scene_report(t0, t1, scene.first_pair(p0, p1, new_contacts_only=new_only), p0, p1, new_only)
         frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)
-        first = None if frame.first is None else self._converted(t0, t1, frame.first, p0)
-        contacts = tuple(sorted((self._converted(t0, t1, c, p0) for c in frame.contacts), key=lambda c: c.fraction))
-        counters = self._counters.tolist()
-        return StepReport(first, contacts, counters[0], counters[5], counters[8], False, StepCounters(counters))
+        contacts = [self._converted(t0, t1, c, p0) for c in frame.contacts]
+        counters = self._counters.tolist()  # pairs, ..., colliding (6), ..., uncertain (8): FrameCounters' order
+        if counters[8]:  # what the scene could not decide, asked of the core's exact tiers
+            def make(k, fraction, point, normal, status, bracket):
+                return self.contact(t0, t1, k, fraction, point, normal, p0, bracket, status)
 
-    def scene_report(self, t0, t1, best_k, p0):
+            contacts, settled, dropped = settle(lambda k: self.pair_problem(k, p0, p1), contacts, new_only, make)
+            counters[8] -= settled
+            counters[6] -= dropped
+        contacts.sort(key=lambda c: c.fraction)
+        first = contacts[0] if contacts else None
+        return StepReport(first, tuple(contacts), counters[0], counters[5], counters[8], False, StepCounters(counters))
+
+    def pair_problem(self, k, p0, p1):
+        """(shape_a, motion_a, shape_b or :class:`~mjccd.Plane`, motion_b or None) of pair k (a plane pair: k
+        past the ellipsoid pairs) in the scene's motion from ellipsoid poses p0 to p1: what the core solves
+        for it."""
+        cls = Rigid if self.motion == "rigid" else Affine
+        npairs = len(self.pairs)
+        if k < npairs:
+            i, j = (int(x) for x in self.pairs[k])
+            return (self._shapes[i], cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
+                    self._shapes[j], cls(p0[j, :3], p0[j, 3:], p1[j, :3], p1[j, 3:]))
+        i, plane = (int(x) for x in self._plane_rows[k - npairs])
+        return (self._shapes[i], cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
+                Plane(self.planes[plane, :3], self.planes[plane, 3]), None)
+
+    def scene_report(self, t0, t1, best_k, p0, p1, new_only=False):
         """The :class:`StepReport` of the scene's last first-contact check (of a step from time ``t0`` to ``t1``
-        from ellipsoid poses ``p0``), read off its workspace: ``best_k`` is the first pair (-1: none), as
-        :meth:`mjccd.scene.Scene.first_pair` and :func:`~mjccd.mujoco.motions.poses_then_first` answer."""
+        from ellipsoid poses ``p0`` to ``p1``), read off its workspace: ``best_k`` is the first pair (-1: none),
+        as :meth:`mjccd.scene.Scene.first_pair` and :func:`~mjccd.mujoco.motions.poses_then_first` answer.  A
+        first contact the scene could not decide sends the step through every pair (:meth:`check_poses`), its
+        uncertain answers to the core's exact tiers."""
         counters = self._counters.tolist()  # pairs, ..., solved_exactly (5), ..., uncertain (8): FrameCounters' order
         first = None
         if best_k >= 0:
@@ -352,6 +377,10 @@ class ModelAdapter:
             else:
                 first = self._converted(t0, t1, first_of(best_k, a.outcome, a.times, a.times_hi, a.points,
                                                          a.normals), p0)
+            if first.certainty != "certified":
+                report = self.check_poses(t0, t1, p0, p1, all_pairs=True, new_only=new_only)
+                return StepReport(report.first, (), report.pairs_checked, report.pairs_solved, report.pairs_uncertain,
+                                  False, report.counters)
         return StepReport(first, (), counters[0], counters[5], counters[8], False, StepCounters(counters))
 
     def _converted(self, t0, t1, hit, p0):
@@ -414,8 +443,11 @@ class ModelAdapter:
             elif hit.point is not None or certain:
                 counters["colliding"] += 1
             bracket = None if certain else hit.bracket
+            point, normal = hit.point, hit.normal
+            if not certain and point is None:  # an uncertain contact carries an estimated point
+                point, normal = estimated_touch(self._shapes[i], motions[i], self._shapes[j], motions[j], hit.time)
             # an uncertain answer keeps the solver's status (the start poses alone may not settle it)
-            c = self.contact(s0.time, s1.time, k, hit.time, hit.point, hit.normal, p0, bracket,
+            c = self.contact(s0.time, s1.time, k, hit.time, point, normal, p0, bracket,
                              None if certain else hit.status_at_start)
             contacts.append(c)
             if not all_pairs:
@@ -442,8 +474,8 @@ class ModelAdapter:
             if i not in motions:
                 motions[i] = chains.motion(i, v0, v1)
             counters["solved_exactly"] += 1
-            hit = plane_first_contact(self._shapes[i], motions[i], Plane(self.planes[plane, :3], self.planes[plane, 3]),
-                                      t_max=1.0 if all_pairs else t_max)
+            floor = Plane(self.planes[plane, :3], self.planes[plane, 3])
+            hit = plane_first_contact(self._shapes[i], motions[i], floor, t_max=1.0 if all_pairs else t_max)
             if hit is None:
                 continue
             certain = hit.certainty == "certified"
@@ -453,7 +485,10 @@ class ModelAdapter:
                 counters["overlapping_t0"] += 1
                 if new_only:
                     continue
-            c = self.contact(s0.time, s1.time, npairs + row, hit.time, hit.point, hit.normal, p0,
+            point, normal = hit.point, hit.normal
+            if not certain and point is None:
+                point, normal = estimated_touch(self._shapes[i], motions[i], floor, None, hit.time)
+            c = self.contact(s0.time, s1.time, npairs + row, hit.time, point, normal, p0,
                              None if certain else hit.bracket,
                              hit.status_at_start if hit.status_at_start != "separate" or not certain else None)
             contacts.append(c)

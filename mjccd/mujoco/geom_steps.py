@@ -16,12 +16,10 @@ from mjccd.geoms import batch as gb
 from mjccd.geoms import kernel as kn
 from mjccd.geoms.poly import _jit
 from mjccd.geoms.solve import workspaces
-from mjccd.mujoco.motions import STATE_NOT_FINITE, State
+from mjccd.mujoco.motions import KINEMATIC_STATE, STATE_NOT_FINITE, State
 
 POSES_NOT_FINITE = -4  # a geom pose is not finite: nothing checked (the caller names the bad value)
 POSES_ONLY = -5  # the poses are written and sound, no pair checked (asked for: every pair's contact is wanted)
-KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
-                   | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
 
 
 @_jit

@@ -6,22 +6,22 @@ import mujoco
 import numpy as np
 
 from mjccd._exclusive import Exclusive, exclusive
+from mjccd._validate import MIN_NORM
 from mjccd.errors import InputError, InputTypeError
+from mjccd.geoms.batch import NEEDS_SOLVER
 from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
                                   StepContact, StepCounters, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
 from mjccd.mujoco.geoms import GeomChecker
-from mjccd.geoms.batch import NEEDS_SOLVER
 from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, GeomSteps
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
-from mjccd.mujoco.motions import (MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state, capture,
-                                  ellipsoid_poses_into, poses_then_first, poses_then_may_touch, quaternion_addresses,
-                                  zero_quaternion)
+from mjccd.mujoco.motions import (KINEMATIC_STATE, MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state,
+                                  capture, ellipsoid_poses_into, has_zero_quaternion, poses_then_first,
+                                  poses_then_may_touch, quaternion_addresses)
 
-KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
-                   | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+MIN_NORM2 = MIN_NORM ** 2  # a quaternion whose squared norm is below this is no rotation (a bad state)
 # MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
 # autoreset is disabled) resets the data inside the step
 BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -279,7 +279,8 @@ class CCDMonitor:
             if best == STATE_NOT_FINITE:
                 return self._unstable()
             if best != POSES_NOT_ORDINARY:
-                return self._reported(self.adapter.scene_report(time_before, d.time, best, poses.poses[0]))
+                return self._reported(self.adapter.scene_report(time_before, d.time, best, *poses.poses,
+                                                                new_only=not self.report_overlapping))
         else:
             if not state_finite(d):
                 return self._unstable()
@@ -324,7 +325,7 @@ class CCDMonitor:
         """True when a joint or mocap quaternion of ``data`` is zero (no rotation: MuJoCo's kinematics would
         read it as the identity, a chain's turns divide by it)."""
         return (len(self._quaternions) or len(data.mocap_quat)) and \
-            zero_quaternion(data.qpos, data.mocap_quat, self._quaternions) is not None
+            has_zero_quaternion(data.qpos, data.mocap_quat, self._quaternions, MIN_NORM2)
 
     def _watch(self, data):
         """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones) once per data."""
@@ -542,4 +543,7 @@ class StepCheck:
         if hit is None:
             return None
         t0, t1 = (None, None) if times is None else times
-        return self.monitor.adapter.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket)
+        adapter = self.monitor.adapter
+        if hit.bracket is not None:  # undecided by the scene: every pair, the undecided asked of the core
+            return adapter.check_poses(t0, t1, p0, p1, all_pairs=True, new_only=True).first
+        return adapter.contact(t0, t1, hit.pair, hit.time, hit.point, hit.normal, p0, hit.bracket)

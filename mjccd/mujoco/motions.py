@@ -14,6 +14,9 @@ MOTIONS = ("rigid", "affine", "chain")
 # what poses_then_first answers instead of a pair index (-1: no contact)
 STATE_NOT_FINITE = -3   # a position or velocity of the state is NaN or infinite: nothing checked
 POSES_NOT_ORDINARY = -2  # a pose is not finite or not ordinary: nothing checked (the scene's own check names it)
+# what fixes the body poses of an MjData: its joint positions and mocap poses (mj_getState's layout)
+KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
+                   | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
 
 
 @dataclass(frozen=True)
@@ -65,6 +68,21 @@ def zero_quaternion(qpos, mocap_quat, addresses):
         if len(small):
             return "mocap_quat", int(small[0])
     return None
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def has_zero_quaternion(qpos, mocap_quat, addresses, min_norm2):
+    """True when a quaternion of ``qpos`` (at ``addresses``) or a row of ``mocap_quat`` has a squared norm below
+    ``min_norm2``: :func:`zero_quaternion`'s test as one compiled call, for the monitor's every step."""
+    for a in addresses:
+        if qpos[a] * qpos[a] + qpos[a + 1] * qpos[a + 1] + qpos[a + 2] * qpos[a + 2] + qpos[a + 3] * qpos[a + 3] \
+                < min_norm2:
+            return True
+    for r in range(mocap_quat.shape[0]):
+        q = mocap_quat[r]
+        if q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3] < min_norm2:
+            return True
+    return False
 
 
 def zero_quaternion_error(model, state, name):

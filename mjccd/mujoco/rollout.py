@@ -456,7 +456,7 @@ class RolloutChecker:
                 where = re.match(rf"poses\[{b}\]\[(\d+)\]", message)
                 errors.setdefault(b, f"rollout {b}: " + (message if where is None else
                                   f"{source(b, int(where.group(1)))}{message[where.end():]}"))
-        return self._answer(found, poses, times, stopped, errors)
+        return self._answer(found, poses, times, stopped, errors, new_only)
 
     def _check(self, poses, new_only):
         """The :class:`~mjccd.batch.BatchContacts` of ``poses`` (B, F, N, 7); None when nothing is checked."""
@@ -505,8 +505,10 @@ class RolloutChecker:
                                uncertain, time_hi, stopped, ok, errors, checker, None, None, None, geoms,
                                tuple(contacts))
 
-    def _answer(self, found, poses, times, stopped, errors):
-        """The :class:`RolloutContacts` of a batch answer."""
+    def _answer(self, found, poses, times, stopped, errors, new_only):
+        """The :class:`RolloutContacts` of a batch answer; a rollout whose first contact the batch left uncertain
+        is checked again from that step on as the monitor checks a step (:meth:`ModelAdapter.check_poses
+        <mjccd.mujoco.ModelAdapter.check_poses>`: the undecided pairs asked of the core's exact tiers)."""
         nb = len(poses)
         a = self.adapter
         step = np.full(nb, -1, dtype=np.int64)
@@ -523,6 +525,22 @@ class RolloutChecker:
             # as Scene.first_contact: no point at t = 0 or when uncertain, unless the solver gave one
             known = hit & found.normal.any(axis=1) | hit & (found.time > 0.0) & ~uncertain
             point[known], normal[known] = found.point[known], found.normal[known]
+        for b in np.flatnonzero(uncertain).tolist():
+            last = len(times[b]) - 1 if stopped[b] < 0 else int(stopped[b])
+            step[b], pair[b], fraction[b], fraction_hi[b], uncertain[b] = -1, -1, np.nan, np.nan, False
+            point[b] = normal[b] = np.nan
+            for f in range(int(found.frame[b]), last):
+                t0, t1 = float(times[b, f]), float(times[b, f + 1])
+                c = a.check_poses(t0, t1, poses[b, f], poses[b, f + 1], new_only=new_only).first
+                if c is None:
+                    continue
+                step[b], pair[b], fraction[b] = f, c.pair, c.fraction
+                uncertain[b] = c.certainty == "uncertain"
+                span = t1 - t0 if t1 > t0 else self.model.opt.timestep
+                fraction_hi[b] = (c.bracket[1] - t0) / span if uncertain[b] else c.fraction
+                if c.point is not None:
+                    point[b], normal[b] = c.point, c.normal
+                break
         for b in errors:
             ok[b] = False
             step[b] = pair[b] = -1

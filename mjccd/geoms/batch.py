@@ -45,14 +45,14 @@ MARGIN = 1e-9   # relative margin of the filters' floating-point tests
 
 
 @_jit
-def _rotate(q, v):
-    """Rotate v by the unit quaternion q [w, x, y, z]."""
+def _rotated(q, vx, vy, vz):
+    """(x, y, z) of the vector (vx, vy, vz) rotated by the unit quaternion q [w, x, y, z] (scalars: the filters
+    run once per pair and step, and a small array made there costs more than the arithmetic)."""
     w, x, y, z = q[0], q[1], q[2], q[3]
-    tx = 2.0 * (y * v[2] - z * v[1])
-    ty = 2.0 * (z * v[0] - x * v[2])
-    tz = 2.0 * (x * v[1] - y * v[0])
-    return np.array([v[0] + w * tx + (y * tz - z * ty), v[1] + w * ty + (z * tx - x * tz),
-                     v[2] + w * tz + (x * ty - y * tx)])
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz), vz + w * tz + (x * ty - y * tx)
 
 
 @_jit
@@ -62,7 +62,7 @@ def geom_poses_into(xpos, xquat, body, local, out):
     for g in range(body.shape[0]):
         b = body[g]
         q = xquat[b]
-        r = _rotate(q, local[g, :3])
+        r = _rotated(q, local[g, 0], local[g, 1], local[g, 2])
         for i in range(3):
             out[g, i] = xpos[b, i] + r[i]
         bw, bx, by, bz = local[g, 3], local[g, 4], local[g, 5], local[g, 6]
@@ -97,45 +97,42 @@ def proxy(kind, size):
 
 
 @_jit
+def _gap_at(rx, ry, rz, d0, d1, s, u):
+    """|r + s d0 - u d1|: the distance of the segments' points at parameters s and u."""
+    dx = rx + s * d0[0] - u * d1[0]
+    dy = ry + s * d0[1] - u * d1[1]
+    dz = rz + s * d0[2] - u * d1[2]
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@_jit
 def _segment_distance(p0, d0, p1, d1):
-    """Distance between the segments p0 + s d0 and p1 + u d1 (s, u in [-1, 1])."""
-    r = p0 - p1
+    """Distance between the segments p0 + s d0 and p1 + u d1 (s, u in [-1, 1]; d0, d1 (3,) or 3-tuples)."""
+    rx, ry, rz = p0[0] - p1[0], p0[1] - p1[1], p0[2] - p1[2]
     a = d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]
     e = d1[0] * d1[0] + d1[1] * d1[1] + d1[2] * d1[2]
-    f = d1[0] * r[0] + d1[1] * r[1] + d1[2] * r[2]
-    c = d0[0] * r[0] + d0[1] * r[1] + d0[2] * r[2]
+    f = d1[0] * rx + d1[1] * ry + d1[2] * rz
+    c = d0[0] * rx + d0[1] * ry + d0[2] * rz
     b = d0[0] * d1[0] + d0[1] * d1[1] + d0[2] * d1[2]
     best = 1e300
     # the clamped closed form may miss the optimum on a degenerate configuration: try it and every end
     denom = a * e - b * b
-    cands = np.empty((5, 2))
-    n = 0
     if denom > 1e-300 * (a * e + 1e-300):
         s = min(max((b * f - c * e) / denom, -1.0), 1.0)
         u = (b * s + f) / e if e > 0.0 else 0.0
-        cands[n, 0], cands[n, 1] = s, min(max(u, -1.0), 1.0)
-        n += 1
+        best = min(best, _gap_at(rx, ry, rz, d0, d1, s, min(max(u, -1.0), 1.0)))
     for end in (-1.0, 1.0):
         u = min(max((b * end + f) / e, -1.0), 1.0) if e > 0.0 else 0.0
-        cands[n, 0], cands[n, 1] = end, u
-        n += 1
+        best = min(best, _gap_at(rx, ry, rz, d0, d1, end, u))
         s = min(max((b * end - c) / a, -1.0), 1.0) if a > 0.0 else 0.0
-        cands[n, 0], cands[n, 1] = s, end
-        n += 1
-    for k in range(n):
-        s, u = cands[k, 0], cands[k, 1]
-        dx = r[0] + s * d0[0] - u * d1[0]
-        dy = r[1] + s * d0[1] - u * d1[1]
-        dz = r[2] + s * d0[2] - u * d1[2]
-        best = min(best, math.sqrt(dx * dx + dy * dy + dz * dz))
+        best = min(best, _gap_at(rx, ry, rz, d0, d1, s, end))
     return best
 
 
 @_jit
 def _axis(q, axis, half):
-    e = np.zeros(3)
-    e[axis] = half
-    return _rotate(q, e)
+    """(x, y, z): the local axis ``axis`` scaled to ``half``, rotated by q."""
+    return _rotated(q, half if axis == 0 else 0.0, half if axis == 1 else 0.0, half if axis == 2 else 0.0)
 
 
 @_jit
@@ -161,9 +158,9 @@ def relative_motion(kinds, sizes, Q0, Q1, ga, gb):
 
 
 @_jit
-def clear(kinds, sizes, Q0, Q1, ga, gb):
+def clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
     """True when geoms ga and gb cannot touch in the step from poses Q0 to Q1 (G, 7), by either filter of the
-    module docstring."""
+    module docstring (``scratch``: (SCRATCH_ROWS, 7) floats for the piecewise test)."""
     pa, pb = ga, gb
     if kinds[ga] == sy.PLANE:
         pa, pb = gb, ga
@@ -172,7 +169,7 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
     c0, c1 = Q0[pa, :3], Q1[pa, :3]
     move_a = _moves(Q0, Q1, pa, reach_a)
     if kinds[pb] == sy.PLANE:
-        n = _rotate(Q0[pb, 3:], np.array([0.0, 0.0, 1.0]))
+        n = _rotated(Q0[pb, 3:], 0.0, 0.0, 1.0)
         o = Q0[pb, :3]
         h0 = n[0] * (c0[0] - o[0]) + n[1] * (c0[1] - o[1]) + n[2] * (c0[2] - o[2])
         h1 = n[0] * (c1[0] - o[0]) + n[1] * (c1[1] - o[1]) + n[2] * (c1[2] - o[2])
@@ -182,25 +179,25 @@ def clear(kinds, sizes, Q0, Q1, ga, gb):
         low = h0 - abs(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) - ra
         if low > move_a * (1.0 + MARGIN) + MARGIN * (abs(h0) + la + ra):
             return True
-        return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb)
+        return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch)
     e0, e1 = Q0[pb, :3], Q1[pb, :3]
     # moving spheres: the centres' lines
-    u = c0 - e0
-    v = (c1 - e1) - u
-    vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+    ux, uy, uz = c0[0] - e0[0], c0[1] - e0[1], c0[2] - e0[2]
+    vx, vy, vz = (c1[0] - e1[0]) - ux, (c1[1] - e1[1]) - uy, (c1[2] - e1[2]) - uz
+    vv = vx * vx + vy * vy + vz * vz
     t = 0.0
     if vv > 0.0:
-        t = min(max(-(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / vv, 0.0), 1.0)
-    w = u + t * v
-    scale = abs(u[0]) + abs(u[1]) + abs(u[2]) + abs(v[0]) + abs(v[1]) + abs(v[2])
-    if math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]) > (reach_a + reach_b) * (1.0 + MARGIN) + MARGIN * scale:
+        t = min(max(-(ux * vx + uy * vy + uz * vz) / vv, 0.0), 1.0)
+    wx, wy, wz = ux + t * vx, uy + t * vy, uz + t * vz
+    scale = abs(ux) + abs(uy) + abs(uz) + abs(vx) + abs(vy) + abs(vz)
+    if math.sqrt(wx * wx + wy * wy + wz * wz) > (reach_a + reach_b) * (1.0 + MARGIN) + MARGIN * scale:
         return True
     # distance of the proxies at the start against how far their points can move
     move_b = _moves(Q0, Q1, pb, reach_b)
     gap = _segment_distance(c0, _axis(Q0[pa, 3:], ax_a, la), e0, _axis(Q0[pb, 3:], ax_b, lb)) - ra - rb
     if gap > (move_a + move_b) * (1.0 + MARGIN) + MARGIN * (scale + la + lb + ra + rb):
         return True
-    return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb)
+    return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch)
 
 
 @_jit
@@ -234,23 +231,25 @@ def _piece_moves(Q0, Q1, g, reach, lo, mid, hi, P):
 
 
 MAX_DEPTH = 4  # halvings of the step for the piecewise test (pieces of 1/16 of the step)
+SCRATCH_ROWS = 6 + 2 * MAX_DEPTH + 2  # the piecewise test's poses at a piece's ends and middle, and its stack
 
 
 @_jit
-def _pieces_clear(kinds, sizes, Q0, Q1, pa, pb):
+def _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch):
     """The distance-against-displacement test on pieces of the step, halved down to MAX_DEPTH: the proxies'
     gap at each piece's middle against how far their points move over the piece (pb may be a plane: the
-    proxy's height above it plays the gap).  True when every piece clears."""
+    proxy's height above it plays the gap).  True when every piece clears.  ``scratch``: (SCRATCH_ROWS, 7)
+    floats to work in."""
     ax_a, la, ra, reach_a = proxy(kinds[pa], sizes[pa])
     ax_b, lb, rb, reach_b = proxy(kinds[pb], sizes[pb])
     plane = kinds[pb] == sy.PLANE
-    n = _rotate(Q0[pb, 3:], np.array([0.0, 0.0, 1.0]))
-    A = np.empty((3, 7))
-    B = np.empty((3, 7))
+    n = _rotated(Q0[pb, 3:], 0.0, 0.0, 1.0)
+    A = scratch[0:3]
+    B = scratch[3:6]
     scale = MARGIN * (abs(Q0[pa, 0]) + abs(Q0[pa, 1]) + abs(Q0[pa, 2]) + abs(Q0[pb, 0]) + abs(Q0[pb, 1])
                       + abs(Q0[pb, 2]) + abs(Q1[pa, 0]) + abs(Q1[pa, 1]) + abs(Q1[pa, 2]) + abs(Q1[pb, 0])
                       + abs(Q1[pb, 1]) + abs(Q1[pb, 2]) + la + lb + ra + rb + reach_a + reach_b)
-    stack = np.empty((2 * MAX_DEPTH + 2, 3))
+    stack = scratch[6:SCRATCH_ROWS, :3]
     stack[0, 0], stack[0, 1], stack[0, 2] = 0.5, 1.0, 1.0
     stack[1, 0], stack[1, 1], stack[1, 2] = 0.0, 0.5, 1.0
     top = 2
@@ -376,11 +375,12 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
     """
     rows_a = np.zeros((1, fr.ELEMENT_FIELDS))
     rows_b = np.zeros((1, fr.ELEMENT_FIELDS))
+    scratch = np.empty((SCRATCH_ROWS, 7))
     best, best_t = -1, t_max
     for k in range(pairs.shape[0]):
         ga, gb = pairs[k, 0], pairs[k, 1]
         o = out[k]
-        if clear(kinds, sizes, Q0, Q1, ga, gb):
+        if clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
             _cleared(o, FILTERED)
             continue
         if min_motion[k] > 0.0 and relative_motion(kinds, sizes, Q0, Q1, ga, gb) < min_motion[k]:

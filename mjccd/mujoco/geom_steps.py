@@ -16,19 +16,23 @@ from mjccd.geoms import batch as gb
 from mjccd.geoms import kernel as kn
 from mjccd.geoms.poly import _jit
 from mjccd.geoms.solve import workspaces
-from mjccd.mujoco.motions import KINEMATIC_STATE, STATE_NOT_FINITE, State
+from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, STATE_NOT_FINITE, State, has_zero_quaternion,
+                                  quaternion_addresses)
 
 POSES_NOT_FINITE = -4  # a geom pose is not finite: nothing checked (the caller names the bad value)
 POSES_ONLY = -5  # the poses are written and sound, no pair checked (asked for: every pair's contact is wanted)
+ZERO_QUATERNION = -6  # a joint or mocap quaternion of the end state is zero (no rotation): a bad state
 
 
 @_jit
-def poses_then_pairs(qpos, qvel, xpos, xquat, body, local, Q0, Q1, check, kinds, sizes, pairs, min_motion,
-                     new_only, W, I, Wdd, Idd, CON, SYS, SYSR, N, out, counts):
+def poses_then_pairs(qpos, qvel, mocap_quat, quaternions, xpos, xquat, body, local, Q0, Q1, check, kinds, sizes,
+                     pairs, min_motion, new_only, W, I, Wdd, Idd, CON, SYS, SYSR, N, out, counts):
     """The compiled part of a monitored step in geoms mode: the end poses Q1 (G, 7) from the body poses
     ``xpos``, ``xquat`` (each geom's ``body`` and ``local`` pose), then :data:`STATE_NOT_FINITE` when the sum of
-    squares of ``qpos`` and ``qvel`` is not finite, :data:`POSES_NOT_FINITE` when a pose of Q0 or Q1 is not,
-    :data:`POSES_ONLY` without ``check``, else every pair's first contact up to the earliest (:func:`mjccd.geoms.batch.step_pairs` into ``out``) and
+    squares of ``qpos`` and ``qvel`` is not finite, :data:`ZERO_QUATERNION` when a quaternion of ``qpos`` (at
+    the addresses ``quaternions``) or of ``mocap_quat`` is (:func:`~mjccd.mujoco.motions.has_zero_quaternion`),
+    :data:`POSES_NOT_FINITE` when a pose of Q0 or Q1 is not finite, :data:`POSES_ONLY` without ``check``, else
+    every pair's first contact up to the earliest (:func:`mjccd.geoms.batch.step_pairs` into ``out``) and
     :func:`mjccd.geoms.batch.tally`'s answer: the first contact's row, -1 when none, or
     :data:`mjccd.geoms.batch.NEEDS_SOLVER` (``counts``: its tallies)."""
     gb.geom_poses_into(xpos, xquat, body, local, Q1)
@@ -39,6 +43,8 @@ def poses_then_pairs(qpos, qvel, xpos, xquat, body, local, Q0, Q1, check, kinds,
         total += v * v
     if not np.isfinite(total):
         return STATE_NOT_FINITE
+    if has_zero_quaternion(qpos, mocap_quat, quaternions, MIN_NORM2):
+        return ZERO_QUATERNION
     for g in range(Q0.shape[0]):
         for i in range(7):
             if not (np.isfinite(Q0[g, i]) and np.isfinite(Q1[g, i])):
@@ -71,12 +77,14 @@ class GeomSteps:
         self._start = self._end = 0
         self._out = np.empty((len(checker.pairs), kn.OUT))
         self._counts = np.empty(len(gb.TALLIES), dtype=np.int64)
+        self._quaternions = quaternion_addresses(m)  # the qpos addresses of the free and ball joints' quaternions
         self._views_of, self._views = None, None
 
     def _views_for(self, data):
-        """(qpos, qvel, xpos, xquat) of ``data`` (MjData arrays are views of its memory: fetched once per data)."""
+        """(qpos, qvel, mocap_quat, xpos, xquat) of ``data`` (MjData arrays are views of its memory: fetched once
+        per data)."""
         if data is not self._views_of:
-            self._views = (data.qpos, data.qvel, data.xpos, data.xquat)
+            self._views = (data.qpos, data.qvel, data.mocap_quat, data.xpos, data.xquat)
             self._views_of = data
         return self._views
 
@@ -120,7 +128,7 @@ class GeomSteps:
         without ``check`` only the end poses): the answer of :func:`poses_then_pairs` (the rows and tallies in
         :attr:`answers`).  ``bodies_current``: ``data``'s body poses are those of its state (read instead of
         computed)."""
-        qpos, qvel, xpos, xquat = self._views_for(data)
+        qpos, qvel, mocap_quat, xpos, xquat = self._views_for(data)
         state = self._state_of(data)
         kb = state.tobytes()
         if not bodies_current:
@@ -128,8 +136,8 @@ class GeomSteps:
         idx = 1 - self._start
         self._keys[idx] = None  # until its poses are written
         c = self.checker
-        answer = poses_then_pairs(qpos, qvel, xpos, xquat, c.body, c.local, self._slots[self._start],
-                                  self._slots[idx], check, c.kinds, c.sizes, c.pairs, c.min_motion, new_only,
+        answer = poses_then_pairs(qpos, qvel, mocap_quat, self._quaternions, xpos, xquat, c.body, c.local,
+                                  self._slots[self._start], self._slots[idx], check, c.kinds, c.sizes, c.pairs, c.min_motion, new_only,
                                   *workspaces(), self._out, self._counts)
         self._keys[idx] = kb
         self._end = idx

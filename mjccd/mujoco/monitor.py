@@ -6,7 +6,6 @@ import mujoco
 import numpy as np
 
 from mjccd._exclusive import Exclusive, exclusive
-from mjccd._validate import MIN_NORM
 from mjccd.errors import InputError, InputTypeError
 from mjccd.geoms.batch import NEEDS_SOLVER
 from mjccd.scene import poses_may_touch
@@ -14,14 +13,13 @@ from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter, 
                                   StepContact, StepCounters, StepReport)
 from mjccd.mujoco.ellipsoids import EllipsoidSet
 from mjccd.mujoco.geoms import GeomChecker
-from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, GeomSteps
+from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, ZERO_QUATERNION, GeomSteps
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
-from mjccd.mujoco.motions import (KINEMATIC_STATE, MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE, as_state,
-                                  capture, ellipsoid_poses_into, has_zero_quaternion, poses_then_first,
+from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE,
+                                  as_state, capture, ellipsoid_poses_into, has_zero_quaternion, poses_then_first,
                                   poses_then_may_touch, quaternion_addresses)
 
-MIN_NORM2 = MIN_NORM ** 2  # a quaternion whose squared norm is below this is no rotation (a bad state)
 # MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
 # autoreset is disabled) resets the data inside the step
 BAD_STATE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQPOS, mujoco.mjtWarning.mjWARN_BADQVEL,
@@ -303,11 +301,11 @@ class CCDMonitor:
             return self._unstable()
         advance()
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
-                or d.time <= time_before or self._zero_quaternion(d):
+                or d.time <= time_before:
             return self._unstable()
         new_only = not self.report_overlapping
         answer = steps.end(d, bodies_current, new_only, check=not self.all_pairs)
-        if answer == STATE_NOT_FINITE:
+        if answer == STATE_NOT_FINITE or answer == ZERO_QUATERNION:
             return self._unstable()
         if answer == POSES_NOT_FINITE:  # a NaN mocap pose, say (MuJoCo checks none): named in the user's terms
             states = steps.states(d)

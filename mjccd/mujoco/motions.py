@@ -17,6 +17,7 @@ POSES_NOT_ORDINARY = -2  # a pose is not finite or not ordinary: nothing checked
 # what fixes the body poses of an MjData: its joint positions and mocap poses (mj_getState's layout)
 KINEMATIC_STATE = (mujoco.mjtState.mjSTATE_QPOS | mujoco.mjtState.mjSTATE_MOCAP_POS
                    | mujoco.mjtState.mjSTATE_MOCAP_QUAT)
+MIN_NORM2 = _validate.MIN_NORM ** 2  # a quaternion whose squared norm is below this is no rotation (a bad state)
 
 
 @dataclass(frozen=True)

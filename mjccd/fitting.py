@@ -246,33 +246,41 @@ def _ellipsoid_distance(local, radii):
 
 
 @numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
-def _point_triangle_d2(p, a, b, c):
-    """Squared distance from p to the triangle abc (Ericson, Real-Time Collision Detection, 5.1.5)."""
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = ab @ ap, ac @ ap
+def _point_triangle_d2(px, py, pz, a, b, c):
+    """Squared distance from p to the triangle abc (Ericson, Real-Time Collision Detection, 5.1.5), in scalars:
+    a hull test calls it for many faces of many points, and small arrays made there cost more than the
+    arithmetic."""
+    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    apx, apy, apz = px - a[0], py - a[1], pz - a[2]
+    d1, d2 = abx * apx + aby * apy + abz * apz, acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
-        q = a
+        qx, qy, qz = a[0], a[1], a[2]
     else:
-        bp = p - b
-        d3, d4 = ab @ bp, ac @ bp
-        cp = p - c
-        d5, d6 = ab @ cp, ac @ cp
+        bpx, bpy, bpz = px - b[0], py - b[1], pz - b[2]
+        d3, d4 = abx * bpx + aby * bpy + abz * bpz, acx * bpx + acy * bpy + acz * bpz
+        cpx, cpy, cpz = px - c[0], py - c[1], pz - c[2]
+        d5, d6 = abx * cpx + aby * cpy + abz * cpz, acx * cpx + acy * cpy + acz * cpz
         va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
         if d3 >= 0.0 and d4 <= d3:
-            q = b
+            qx, qy, qz = b[0], b[1], b[2]
         elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            q = a + d1 / (d1 - d3) * ab
+            s = d1 / (d1 - d3)
+            qx, qy, qz = a[0] + s * abx, a[1] + s * aby, a[2] + s * abz
         elif d6 >= 0.0 and d5 <= d6:
-            q = c
+            qx, qy, qz = c[0], c[1], c[2]
         elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            q = a + d2 / (d2 - d6) * ac
+            s = d2 / (d2 - d6)
+            qx, qy, qz = a[0] + s * acx, a[1] + s * acy, a[2] + s * acz
         elif va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-            q = b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)
+            s = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            qx, qy, qz = b[0] + s * (c[0] - b[0]), b[1] + s * (c[1] - b[1]), b[2] + s * (c[2] - b[2])
         else:
             denom = 1.0 / (va + vb + vc)
-            q = a + ab * (vb * denom) + ac * (vc * denom)
-    e = p - q
-    return e @ e
+            v, w = vb * denom, vc * denom
+            qx, qy, qz = a[0] + abx * v + acx * w, a[1] + aby * v + acy * w, a[2] + abz * v + acz * w
+    ex, ey, ez = px - qx, py - qy, pz - qz
+    return ex * ex + ey * ey + ez * ez
 
 
 @numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
@@ -287,11 +295,11 @@ def _hull_distance(points, a, b, c, normals, offsets):
     """
     out = np.zeros(points.shape[0])
     for k in range(points.shape[0]):
-        p = points[k]
+        px, py, pz = points[k, 0], points[k, 1], points[k, 2]
         best = np.inf
         for f in range(a.shape[0]):
-            if normals[f] @ p > offsets[f]:
-                best = min(best, _point_triangle_d2(p, a[f], b[f], c[f]))
+            if normals[f, 0] * px + normals[f, 1] * py + normals[f, 2] * pz > offsets[f]:
+                best = min(best, _point_triangle_d2(px, py, pz, a[f], b[f], c[f]))
         if best < np.inf:
             out[k] = np.sqrt(best)
     return out
@@ -830,39 +838,62 @@ class _Hull:
         face), or three of the box (a box corner inside the polytope).
         """
         V, tol = self.vertices, self.slack
-
-        def in_box(x):
-            return np.all((x >= lo - tol) & (x <= hi + tol), axis=1)
-
-        found = [V[in_box(V)]]
-        A, B = V[self.edges[:, 0]], V[self.edges[:, 1]]
-        for axis in range(3):
-            for value in (lo[axis], hi[axis]):
-                da, db = A[:, axis] - value, B[:, axis] - value
-                crossing = da * db < 0.0
-                f = da[crossing] / (da[crossing] - db[crossing])
-                x = A[crossing] + (B[crossing] - A[crossing]) * f[:, None]
-                x[:, axis] = value
-                found.append(x[in_box(x)])
         a, b, c = self.triangles
-        for axis in range(3):
-            i, j = [k for k in range(3) if k != axis]
-            det = (b[:, i] - a[:, i]) * (c[:, j] - a[:, j]) - (c[:, i] - a[:, i]) * (b[:, j] - a[:, j])
-            upright = det != 0.0  # a face parallel to the box edge meets it only on edges of faces that are not
-            aa, bb, cc, det = a[upright], b[upright], c[upright], det[upright]
-            for u in (lo[i], hi[i]):
-                for v in (lo[j], hi[j]):
-                    s1 = ((u - aa[:, i]) * (cc[:, j] - aa[:, j]) - (cc[:, i] - aa[:, i]) * (v - aa[:, j])) / det
-                    s2 = ((bb[:, i] - aa[:, i]) * (v - aa[:, j]) - (u - aa[:, i]) * (bb[:, j] - aa[:, j])) / det
-                    hit = (s1 >= -1e-12) & (s2 >= -1e-12) & (s1 + s2 <= 1.0 + 1e-12)
-                    x = np.empty((int(hit.sum()), 3))
-                    x[:, axis] = (aa[hit, axis] + s1[hit] * (bb[hit, axis] - aa[hit, axis])
-                                  + s2[hit] * (cc[hit, axis] - aa[hit, axis]))
-                    x[:, i], x[:, j] = u, v
-                    found.append(x[in_box(x)])
+        found = [_cut_points(V, self.edges, a, b, c, np.asarray(lo, dtype=float), np.asarray(hi, dtype=float), tol)]
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
         found.append(corners[np.all(corners @ self.normals.T <= self.offsets + tol, axis=1)])
         return np.vstack(found)
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _in_box(x, y, z, lo, hi, tol):
+    return (lo[0] - tol <= x <= hi[0] + tol) and (lo[1] - tol <= y <= hi[1] + tol) and (lo[2] - tol <= z <= hi[2] + tol)
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _cut_points(V, edges, a, b, c, lo, hi, tol):
+    """The points of :meth:`_Hull.cut` but the box corners, in its order: the vertices in the box, the edges
+    through the box's faces, the box's edges through the triangles (a, b, c), each kept within ``tol`` of the
+    box.  Compiled: a mesh cover cuts thousands of cells."""
+    out = np.empty((V.shape[0] + 6 * edges.shape[0] + 12 * a.shape[0], 3))
+    n = 0
+    for k in range(V.shape[0]):
+        if _in_box(V[k, 0], V[k, 1], V[k, 2], lo, hi, tol):
+            out[n] = V[k]
+            n += 1
+    x = np.empty(3)
+    for axis in range(3):
+        for value in (lo[axis], hi[axis]):
+            for e in range(edges.shape[0]):
+                A, B = V[edges[e, 0]], V[edges[e, 1]]
+                da, db = A[axis] - value, B[axis] - value
+                if not da * db < 0.0:
+                    continue
+                f = da / (da - db)
+                for m in range(3):
+                    x[m] = A[m] + (B[m] - A[m]) * f
+                x[axis] = value
+                if _in_box(x[0], x[1], x[2], lo, hi, tol):
+                    out[n] = x
+                    n += 1
+    for axis in range(3):
+        i, j = (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))
+        for u in (lo[i], hi[i]):
+            for v in (lo[j], hi[j]):
+                for f in range(a.shape[0]):
+                    det = (b[f, i] - a[f, i]) * (c[f, j] - a[f, j]) - (c[f, i] - a[f, i]) * (b[f, j] - a[f, j])
+                    if det == 0.0:  # a face parallel to the box edge meets it only on edges of faces that are not
+                        continue
+                    s1 = ((u - a[f, i]) * (c[f, j] - a[f, j]) - (c[f, i] - a[f, i]) * (v - a[f, j])) / det
+                    s2 = ((b[f, i] - a[f, i]) * (v - a[f, j]) - (u - a[f, i]) * (b[f, j] - a[f, j])) / det
+                    if not (s1 >= -1e-12 and s2 >= -1e-12 and s1 + s2 <= 1.0 + 1e-12):
+                        continue
+                    x[axis] = a[f, axis] + s1 * (b[f, axis] - a[f, axis]) + s2 * (c[f, axis] - a[f, axis])
+                    x[i], x[j] = u, v
+                    if _in_box(x[0], x[1], x[2], lo, hi, tol):
+                        out[n] = x
+                        n += 1
+    return out[:n]
 
 
 def _spacing(k, growth):
@@ -971,26 +1002,53 @@ def _aligned_ellipsoid(piece, centre, directions, support):
     reach = np.abs(piece - centre)
     base = directions @ centre - support
     scale = max(reach.max(), 1e-300)
-
-    def radii(theta):
-        a = np.exp(theta)
-        return a * np.sqrt(np.max(np.sum((reach / a) ** 2, axis=1)))
-
-    def gap(theta):
-        return np.max(base + np.linalg.norm(directions * radii(theta), axis=1))
-
     theta = np.log(np.maximum(reach.max(axis=0), 1e-3 * scale))
-    best, step = gap(theta), 0.5
-    moves = np.vstack([np.eye(3), -np.eye(3)])
+    return _pattern_search(reach, base, np.ascontiguousarray(directions, dtype=float), theta)
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _scaled_radii(reach, theta):
+    """``exp(theta)`` scaled to the least ellipsoid of that shape holding every point of ``reach`` (n, 3)."""
+    a = np.exp(theta)
+    worst = 0.0
+    for k in range(reach.shape[0]):
+        x, y, z = reach[k, 0] / a[0], reach[k, 1] / a[1], reach[k, 2] / a[2]
+        worst = max(worst, x * x + y * y + z * z)
+    return a * np.sqrt(worst)
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _overshoot(reach, base, directions, theta):
+    """The largest excess ``base + |diag(radii) n|`` over ``directions`` of the ellipsoid :func:`_scaled_radii`."""
+    r = _scaled_radii(reach, theta)
+    out = -np.inf
+    for k in range(directions.shape[0]):
+        x, y, z = directions[k, 0] * r[0], directions[k, 1] * r[1], directions[k, 2] * r[2]
+        out = max(out, base[k] + np.sqrt(x * x + y * y + z * z))
+    return out
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def _pattern_search(reach, base, directions, theta):
+    """:func:`_aligned_ellipsoid`'s search: from ``theta``, steps of +-step along each log semi-axis, the best
+    taken, the step halved when none is better, down to 1e-2; the semi-axes of the end."""
+    theta = theta.copy()
+    best, step = _overshoot(reach, base, directions, theta), 0.5
+    trial = np.empty(3)
     while step > 1e-2:
-        trials = [theta + step * m for m in moves]
-        values = [gap(x) for x in trials]
-        k = int(np.argmin(values))
-        if values[k] < best:
-            theta, best = trials[k], values[k]
+        best_k, best_value = -1, np.inf
+        for k in range(6):
+            trial[:] = theta
+            trial[k % 3] += step if k < 3 else -step
+            value = _overshoot(reach, base, directions, trial)
+            if value < best_value:
+                best_k, best_value = k, value
+        if best_value < best:
+            theta[best_k % 3] += step if best_k < 3 else -step
+            best = best_value
         else:
             step *= 0.5
-    return radii(theta)
+    return _scaled_radii(reach, theta)
 
 
 def _piece_ellipsoid(piece, cut_axes, hull, directions, support, tolerance):

@@ -93,12 +93,24 @@ def require_dm_control(user):
     raise DmControlUnavailableError(f"{user} needs dm-control, but {problem}. {advice}")
 
 
+def _built_by_dm_control(physics):
+    """True when ``physics`` is a dm-control ``Physics``: dm-control built it with the installed MuJoCo."""
+    if physics is None or dm_env is None:
+        return False
+    try:
+        from dm_control import mujoco as dm_mujoco
+    except Exception:  # noqa: BLE001 - whatever breaks the import, the probe names it
+        return False
+    return isinstance(physics, dm_mujoco.Physics)
+
+
 class DelegatingEnvironment(dm_env.Environment if dm_env is not None else object):
     """Base of mjccd's dm-control wrappers: holds a dm-control environment and passes everything on."""
 
     def __init__(self, env):
-        require_dm_control(type(self).__name__)
         physics = getattr(env, "physics", None)
+        if not _built_by_dm_control(physics):  # else dm-control evidently works here: no probe
+            require_dm_control(type(self).__name__)
         if physics is None or not hasattr(physics, "model") or not hasattr(physics.model, "ptr"):
             raise InputTypeError(f"env: expected a dm-control environment with a `physics`, got {type(env).__name__}")
         self._env = env

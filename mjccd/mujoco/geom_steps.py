@@ -16,8 +16,8 @@ from mjccd.geoms import batch as gb
 from mjccd.geoms import kernel as kn
 from mjccd.geoms.poly import _jit
 from mjccd.geoms.solve import workspaces
-from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, STATE_NOT_FINITE, State, has_zero_quaternion,
-                                  quaternion_addresses)
+from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, STATE_NOT_FINITE, State, finite_state,
+                                  has_zero_quaternion, kinematic_state, quaternion_addresses)
 
 POSES_NOT_FINITE = -4  # a geom pose is not finite: nothing checked (the caller names the bad value)
 POSES_ONLY = -5  # the poses are written and sound, no pair checked (asked for: every pair's contact is wanted)
@@ -36,12 +36,7 @@ def poses_then_pairs(qpos, qvel, mocap_quat, quaternions, xpos, xquat, body, loc
     :func:`mjccd.geoms.batch.tally`'s answer: the first contact's row, -1 when none, or
     :data:`mjccd.geoms.batch.NEEDS_SOLVER` (``counts``: its tallies)."""
     gb.geom_poses_into(xpos, xquat, body, local, Q1)
-    total = 0.0
-    for v in qpos:
-        total += v * v
-    for v in qvel:
-        total += v * v
-    if not np.isfinite(total):
+    if not finite_state(qpos, qvel):
         return STATE_NOT_FINITE
     if has_zero_quaternion(qpos, mocap_quat, quaternions, MIN_NORM2):
         return ZERO_QUATERNION
@@ -88,13 +83,6 @@ class GeomSteps:
             self._views_of = data
         return self._views
 
-    def _state_of(self, data):
-        """The kinematic state of ``data`` (``KINEMATIC_STATE`` layout; a view of its qpos when that is all)."""
-        if self._qpos_only:
-            return data.qpos
-        mujoco.mj_getState(self.model, data, self._key, KINEMATIC_STATE)
-        return self._key
-
     def _body_poses(self, state):
         """The private data's body poses after its kinematics in the kinematic ``state``."""
         qpos, xpos, xquat = self._private_views
@@ -108,7 +96,7 @@ class GeomSteps:
     def begin(self, data):
         """Record the state of ``data`` as the start of a step (its geom poses computed unless last seen): True
         when it is the end state of the last step checked (already tested there)."""
-        state = self._state_of(data)
+        state = kinematic_state(self.model, data, self._key, self._qpos_only)
         kb = state.tobytes()
         if self._keys[self._end] == kb:
             self._start = self._end
@@ -129,7 +117,7 @@ class GeomSteps:
         :attr:`answers`).  ``bodies_current``: ``data``'s body poses are those of its state (read instead of
         computed)."""
         qpos, qvel, mocap_quat, xpos, xquat = self._views_for(data)
-        state = self._state_of(data)
+        state = kinematic_state(self.model, data, self._key, self._qpos_only)
         kb = state.tobytes()
         if not bodies_current:
             xpos, xquat = self._body_poses(state)
@@ -137,8 +125,8 @@ class GeomSteps:
         self._keys[idx] = None  # until its poses are written
         c = self.checker
         answer = poses_then_pairs(qpos, qvel, mocap_quat, self._quaternions, xpos, xquat, c.body, c.local,
-                                  self._slots[self._start], self._slots[idx], check, c.kinds, c.sizes, c.pairs, c.min_motion, new_only,
-                                  *workspaces(), self._out, self._counts)
+                                  self._slots[self._start], self._slots[idx], check, c.kinds, c.sizes, c.pairs,
+                                  c.min_motion, new_only, *workspaces(), self._out, self._counts)
         self._keys[idx] = kb
         self._end = idx
         return answer

@@ -17,8 +17,8 @@ from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, ZERO_QUATERNIO
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE,
-                                  as_state, capture, ellipsoid_poses_into, has_zero_quaternion, poses_then_first,
-                                  poses_then_may_touch, quaternion_addresses)
+                                  as_state, capture, ellipsoid_poses_into, has_zero_quaternion, kinematic_state,
+                                  poses_then_first, poses_then_may_touch, quaternion_addresses)
 
 # MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
 # autoreset is disabled) resets the data inside the step
@@ -423,13 +423,6 @@ class StepCheck:
             self._views_of = data
         return self._views
 
-    def _state_of(self, data):
-        """The kinematic state of ``data`` (``KINEMATIC_STATE`` layout; a view of its qpos when that is all)."""
-        if self._qpos_only:
-            return data.qpos
-        mujoco.mj_getState(self.model, data, self._key, KINEMATIC_STATE)
-        return self._key
-
     def _fill(self, idx, kb, state):
         """Private data ``idx`` set to the kinematic ``state`` (whose bytes are ``kb``), kinematics run."""
         slot = self._slots[idx]
@@ -456,7 +449,7 @@ class StepCheck:
         (the guard reads it off its saved full state), else it is read from ``data``.
         """
         if state is None:
-            state = self._state_of(data)
+            state = kinematic_state(self.model, data, self._key, self._qpos_only)
         kb = state.tobytes()
         slots = self._slots
         if slots[self._end][1] == kb:
@@ -472,7 +465,7 @@ class StepCheck:
         are still to be computed, or None when it is the start state (poses known).  The body poses to
         compute them from are those of the slot's private data after its kinematics, or with
         ``bodies_current`` (``data``'s own are those of its state) ``data``'s."""
-        state = self._state_of(data)
+        state = kinematic_state(self.model, data, self._key, self._qpos_only)
         kb = state.tobytes()
         start = self._start
         if self._slots[start][1] == kb:

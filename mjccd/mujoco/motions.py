@@ -245,6 +245,28 @@ def geom_distance_between(model, data, geom_pairs, qpos0, qpos1, fraction, distm
 
 
 @numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+def finite_state(qpos, qvel):
+    """False when the sum of squares of ``qpos`` and ``qvel`` is not finite: a NaN or infinite position or
+    velocity (as :func:`mjccd.mujoco.monitor.state_finite` tests it; MuJoCo warns of any value above 1e10, so a
+    sound state cannot overflow it)."""
+    total = 0.0
+    for v in qpos:
+        total += v * v
+    for v in qvel:
+        total += v * v
+    return np.isfinite(total)
+
+
+def kinematic_state(model, data, out, qpos_only):
+    """The state of ``data`` that fixes its body poses, in ``KINEMATIC_STATE``'s layout: a view of its qpos when
+    ``qpos_only`` (the model has no mocap body), else written into ``out`` by ``mj_getState``."""
+    if qpos_only:
+        return data.qpos
+    mujoco.mj_getState(model, data, out, KINEMATIC_STATE)
+    return out
+
+
+@numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def poses_then_may_touch(xpos, xquat, body_ids, local, p0, p1, workspace):
     """:func:`ellipsoid_poses_into` for the end poses ``p1`` (``local`` = [positions, quaternions]),
     then :func:`mjccd.scene.poses_may_touch` of a scene's ``workspace`` (:attr:`mjccd.scene.Scene.workspace`)
@@ -267,12 +289,7 @@ def poses_then_first(qpos, qvel, xpos, xquat, body_ids, local, p0, p1, fill, ws,
     """
     if fill:
         ellipsoid_poses_into(xpos, xquat, body_ids, local[:, :3], local[:, 3:], p1)
-    total = 0.0
-    for v in qpos:
-        total += v * v
-    for v in qvel:
-        total += v * v
-    if not np.isfinite(total):
+    if not finite_state(qpos, qvel):
         return STATE_NOT_FINITE
     s0, r0, s1, r1 = field(ws, "p0"), field(ws, "q0"), field(ws, "p1"), field(ws, "q1")
     if not (split_poses(p0, s0, r0) and split_poses(p1, s1, r1)):

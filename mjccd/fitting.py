@@ -859,7 +859,8 @@ def _cut_points(V, edges, a, b, c, lo, hi, tol):
     n = 0
     for k in range(V.shape[0]):
         if _in_box(V[k, 0], V[k, 1], V[k, 2], lo, hi, tol):
-            out[n] = V[k]
+            for m in range(3):
+                out[n, m] = V[k, m]
             n += 1
     x = np.empty(3)
     for axis in range(3):
@@ -874,7 +875,8 @@ def _cut_points(V, edges, a, b, c, lo, hi, tol):
                     x[m] = A[m] + (B[m] - A[m]) * f
                 x[axis] = value
                 if _in_box(x[0], x[1], x[2], lo, hi, tol):
-                    out[n] = x
+                    for m in range(3):
+                        out[n, m] = x[m]
                     n += 1
     for axis in range(3):
         i, j = (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))
@@ -891,7 +893,8 @@ def _cut_points(V, edges, a, b, c, lo, hi, tol):
                     x[axis] = a[f, axis] + s1 * (b[f, axis] - a[f, axis]) + s2 * (c[f, axis] - a[f, axis])
                     x[i], x[j] = u, v
                     if _in_box(x[0], x[1], x[2], lo, hi, tol):
-                        out[n] = x
+                        for m in range(3):
+                            out[n, m] = x[m]
                         n += 1
     return out[:n]
 
@@ -1038,7 +1041,8 @@ def _pattern_search(reach, base, directions, theta):
     while step > 1e-2:
         best_k, best_value = -1, np.inf
         for k in range(6):
-            trial[:] = theta
+            for i in range(3):
+                trial[i] = theta[i]
             trial[k % 3] += step if k < 3 else -step
             value = _overshoot(reach, base, directions, trial)
             if value < best_value:

@@ -7,10 +7,12 @@ import json
 import os
 import warnings
 import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
@@ -415,31 +417,52 @@ def _fit(model, tolerance, per, body_ids, explicit, include_visual, max_ellipsoi
             out["quaternions"].append(matrix_to_quat(R))
             out["volume_ratios"].append(4.0 / 3.0 * np.pi * np.prod(r) / volume if volume > 0 else np.nan)
 
-    for b in body_ids:
+    def body_fit(b):
+        """``(emitted, notes)`` of body b: the arguments of each ``emit`` and the notes, in order."""
+        emitted, body_notes = [], []
         geoms = collision_geoms(model, b, include_visual=include_visual)
         label = body_label(model, b)
         if not geoms:
             if explicit:
                 raise ValueError(f"bodies: body {label!r} has no collision geometry")
-            continue
+            return emitted, body_notes
         usable = [g for g in geoms if int(model.geom_type[g]) in SUPPORTED]
         if not usable:
             if explicit:
                 kinds = sorted({mujoco.mjtGeom(int(model.geom_type[g])).name for g in geoms})
                 raise ValueError(f"bodies: body {label!r} has only unsupported geoms ({', '.join(kinds)})")
-            continue
+            return emitted, body_notes
+        keep = lambda *args: emitted.append(args)  # noqa: E731
         try:
             if tolerance is not None:
-                _cover_body(model, b, usable, tolerance, per, max_ellipsoids, emit, notes)
+                _cover_body(model, b, usable, tolerance, per, max_ellipsoids, keep, body_notes)
             elif per == "geom":
                 for g in usable:
                     shape = geom_shape(model, g)
-                    emit(b, geom_label(model, g), [fit_shapes([shape])], shape.volume())
+                    keep(b, geom_label(model, g), [fit_shapes([shape])], shape.volume())
             else:
                 shapes = [geom_shape(model, g) for g in usable]
-                emit(b, "", [fit_shapes(shapes)], sum(shape.volume() for shape in shapes))
+                keep(b, "", [fit_shapes(shapes)], sum(shape.volume() for shape in shapes))
         except ValueError as exc:
             raise ValueError(f"body {label!r}: {exc}") from None
+        return emitted, body_notes
+
+    # Bodies are fitted on all cores (the covers' kernels release the GIL), their results taken in body order:
+    # the same ellipsoids, notes and first error as one after the other.  BLAS runs one thread meanwhile: its
+    # threads spin on the fit's many small products and took more time than they saved (Kinova's meshes:
+    # 8.8 s with them, 6.8 s without, 3.9 s on two cores).
+    workers = min(len(body_ids), len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else
+                  (os.cpu_count() or 1))
+    with threadpool_limits(limits=1, user_api="blas"):
+        if tolerance is None or workers < 2:
+            results = [body_fit(b) for b in body_ids]
+        else:
+            with ThreadPoolExecutor(workers, thread_name_prefix="mjccd-fit") as pool:
+                results = list(pool.map(body_fit, body_ids))
+    for emitted, body_notes in results:
+        for args in emitted:
+            emit(*args)
+        notes.extend(body_notes)
     return (EllipsoidSet(**out) if out["bodies"] else None), notes
 
 

@@ -203,8 +203,11 @@ class ModelAdapter:
         if self.motion == "chain":
             return self.chain_motions(s0, s1)
         e0, e1 = self.poses(s0), self.poses(s1)
-        cls = Rigid if self.motion == "rigid" else Affine
-        return [cls(a[:3], a[3:], b[:3], b[3:]) for a, b in zip(e0, e1)]
+        return [self._pose_motion(a, b) for a, b in zip(e0, e1)]
+
+    def _pose_motion(self, pose0, pose1):
+        """The scene's motion (rigid or affine) of an ellipsoid from pose0 to pose1 ([x, y, z, qw, qx, qy, qz])."""
+        return (Rigid if self.motion == "rigid" else Affine)(pose0[:3], pose0[3:], pose1[:3], pose1[3:])
 
     def chain_motions(self, s0, s1):
         """The exact chain motion (:class:`mjccd.Chain`) of every ellipsoid from :class:`State` s0 to s1."""
@@ -352,14 +355,13 @@ class ModelAdapter:
         """(shape_a, motion_a, shape_b or :class:`~mjccd.Plane`, motion_b or None) of pair k (a plane pair: k
         past the ellipsoid pairs) in the scene's motion from ellipsoid poses p0 to p1: what the core solves
         for it."""
-        cls = Rigid if self.motion == "rigid" else Affine
         npairs = len(self.pairs)
         if k < npairs:
             i, j = (int(x) for x in self.pairs[k])
-            return (self._shapes[i], cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
-                    self._shapes[j], cls(p0[j, :3], p0[j, 3:], p1[j, :3], p1[j, 3:]))
+            return (self._shapes[i], self._pose_motion(p0[i], p1[i]),
+                    self._shapes[j], self._pose_motion(p0[j], p1[j]))
         i, plane = (int(x) for x in self._plane_rows[k - npairs])
-        return (self._shapes[i], cls(p0[i, :3], p0[i, 3:], p1[i, :3], p1[i, 3:]),
+        return (self._shapes[i], self._pose_motion(p0[i], p1[i]),
                 Plane(self.planes[plane, :3], self.planes[plane, 3]), None)
 
     def scene_report(self, t0, t1, best_k, p0, p1, new_only=False):

@@ -304,16 +304,21 @@ class GeomChecker:
         out = np.empty((npairs, kn.OUT))
         gb.step_pairs(self.kinds, self.sizes, Q0, Q1, self.pairs, self.min_motion, 1.0, bool(all_pairs),
                       bool(new_only), *workspaces(), out)
-        if not all_pairs:
-            tallies = np.empty(len(gb.TALLIES), dtype=np.int64)
-            first = gb.tally(out, bool(new_only), tallies)
-            if first != gb.NEEDS_SOLVER:
-                return self.tallied_report(t0, t1, out, first, tallies)
-        return self.report_of_rows(t0, t1, Q0, Q1, out, all_pairs, new_only)
+        if all_pairs:
+            return self.report_of_rows(t0, t1, Q0, Q1, out, True, new_only)
+        tallies = np.empty(len(gb.TALLIES), dtype=np.int64)
+        return self.first_report(t0, t1, Q0, Q1, out, gb.tally(out, bool(new_only), tallies), tallies, new_only)
 
-    def tallied_report(self, t0, t1, out, first, tallies):
-        """The first-contact :class:`StepReport` of a step from time t0 to t1 whose rows ``out`` were all answered
-        by the kernel: ``first`` and ``tallies`` as :func:`mjccd.geoms.batch.tally` gives them."""
+    def first_report(self, t0, t1, Q0, Q1, out, first, tallies, new_only):
+        """The first-contact :class:`StepReport` of a step from time t0 to t1 (geom poses Q0, Q1) from
+        :func:`~mjccd.geoms.batch.step_pairs`' rows ``out`` and :func:`~mjccd.geoms.batch.tally`'s ``first`` and
+        ``tallies``: read off the tallies, or row by row when a pair is left to the ellipsoid solver."""
+        if first == gb.NEEDS_SOLVER:
+            return self.report_of_rows(t0, t1, Q0, Q1, out, False, new_only)
+        return self._tallied_report(t0, t1, out, first, tallies)
+
+    def _tallied_report(self, t0, t1, out, first, tallies):
+        """:meth:`first_report` when the kernel answered every row."""
         counts = [0] * len(COUNTER_NAMES)
         counts[0] = len(out)  # pairs
         for slot, value in zip(TALLY_SLOTS, tallies.tolist()):

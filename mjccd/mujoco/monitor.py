@@ -1,5 +1,4 @@
 """CCDMonitor: the exact first contact of every MuJoCo step between fitted ellipsoids."""
-import math
 import warnings
 
 import mujoco
@@ -7,7 +6,6 @@ import numpy as np
 
 from mjccd._exclusive import Exclusive, exclusive
 from mjccd.errors import InputError, InputTypeError
-from mjccd.geoms.batch import NEEDS_SOLVER
 from mjccd.scene import poses_may_touch
 from mjccd.mujoco.adapter import (COUNTER_NAMES, UNSTABLE_REPORT, ModelAdapter,  # noqa: F401 (re-exported)
                                   StepContact, StepCounters, StepReport)
@@ -17,8 +15,8 @@ from mjccd.mujoco.geom_steps import POSES_NOT_FINITE, POSES_ONLY, ZERO_QUATERNIO
 from mjccd.mujoco.pairs import pairs_with_reason, plane_pairs, warn_uncovered
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, MOTIONS, POSES_NOT_ORDINARY, STATE_NOT_FINITE,
-                                  as_state, capture, ellipsoid_poses_into, has_zero_quaternion, kinematic_state,
-                                  poses_then_first, poses_then_may_touch, quaternion_addresses)
+                                  as_state, capture, ellipsoid_poses_into, finite_state, has_zero_quaternion,
+                                  kinematic_state, poses_then_first, poses_then_may_touch, quaternion_addresses)
 
 # MuJoCo's warnings for a NaN, infinite or huge position, velocity or acceleration: it raises one and (unless
 # autoreset is disabled) resets the data inside the step
@@ -68,13 +66,9 @@ def went_bad(data, counts, counts_before, time_before):
 
 
 def state_finite(data):
-    """False when a position or velocity of ``data`` is NaN or infinite.
-
-    One finite sum of squares for all: MuJoCo warns of any |qpos| or |qvel| above 1e10, so a sound state
-    cannot overflow it, and a NaN or infinity makes it non-finite.
-    """
-    qpos, qvel = data.qpos, data.qvel
-    return math.isfinite(qpos.dot(qpos) + qvel.dot(qvel))
+    """False when a position or velocity of ``data`` is NaN or infinite (:func:`~mjccd.mujoco.motions.finite_state`,
+    the test the compiled step paths make)."""
+    return bool(finite_state(data.qpos, data.qvel))
 
 
 def check_simulation(model, data):
@@ -315,9 +309,8 @@ class CCDMonitor:
             return self._reported(self.geoms.check_poses(time_before, d.time, *steps.poses, all_pairs=True,
                                                          new_only=new_only))
         out, tallies = steps.answers
-        if answer == NEEDS_SOLVER:
-            return self._reported(self.geoms.report_of_rows(time_before, d.time, *steps.poses, out, False, new_only))
-        return self._reported(self.geoms.tallied_report(time_before, d.time, out, answer, tallies))
+        return self._reported(self.geoms.first_report(time_before, d.time, *steps.poses, out, answer, tallies,
+                                                      new_only))
 
     def _zero_quaternion(self, data):
         """True when a joint or mocap quaternion of ``data`` is zero (no rotation: MuJoCo's kinematics would

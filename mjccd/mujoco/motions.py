@@ -247,8 +247,8 @@ def geom_distance_between(model, data, geom_pairs, qpos0, qpos1, fraction, distm
 @numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 def finite_state(qpos, qvel):
     """False when the sum of squares of ``qpos`` and ``qvel`` is not finite: a NaN or infinite position or
-    velocity (as :func:`mjccd.mujoco.monitor.state_finite` tests it; MuJoCo warns of any value above 1e10, so a
-    sound state cannot overflow it)."""
+    velocity.  One sum for all: MuJoCo warns of any value above 1e10, so a sound state cannot overflow it.  The
+    one test of a state's finiteness, in the compiled step calls and in :func:`mjccd.mujoco.monitor.state_finite`."""
     total = 0.0
     for v in qpos:
         total += v * v

@@ -466,22 +466,25 @@ class RolloutChecker:
             return None
         return self._scene(nb).first_contacts_along(poses, new_contacts_only=new_only)
 
+    def _first_along(self, poses, times, start, stopped, new_only):
+        """``(step, StepContact)`` of one rollout's first contact from step ``start`` on, each step checked in
+        order as the monitor checks one (the checker's ``check_poses``), up to the step where its time stopped
+        (``stopped``, -1: none); None when there is none."""
+        last = len(times) - 1 if stopped < 0 else int(stopped)
+        for f in range(start, last):
+            first = self.adapter.check_poses(float(times[f]), float(times[f + 1]), poses[f], poses[f + 1],
+                                             new_only=new_only).first
+            if first is not None:
+                return f, first
+        return None
+
     def _geom_answer(self, poses, times, stopped, errors, new_only):
         """The :class:`RolloutContacts` of geoms mode: each answered rollout's steps checked in order up to its
         first contact (a rollout whose time stopped, up to the step where it did)."""
-        nb, nf = poses.shape[:2]
+        nb = len(poses)
         checker = self.adapter
-        found = [None] * nb
-        for b in range(nb):
-            if b in errors:
-                continue
-            last = nf - 1 if stopped[b] < 0 else int(stopped[b])
-            for f in range(last):
-                first = checker.check_poses(float(times[b, f]), float(times[b, f + 1]), poses[b, f],
-                                            poses[b, f + 1], new_only=new_only).first
-                if first is not None:
-                    found[b] = (f, first)
-                    break
+        found = [None if b in errors else self._first_along(poses[b], times[b], 0, stopped[b], new_only)
+                 for b in range(nb)]
         step = np.full(nb, -1, dtype=np.int64)
         pair = np.full(nb, -1, dtype=np.int64)
         geoms = np.full((nb, 2), -1, dtype=np.int64)
@@ -526,21 +529,19 @@ class RolloutChecker:
             known = hit & found.normal.any(axis=1) | hit & (found.time > 0.0) & ~uncertain
             point[known], normal[known] = found.point[known], found.normal[known]
         for b in np.flatnonzero(uncertain).tolist():
-            last = len(times[b]) - 1 if stopped[b] < 0 else int(stopped[b])
             step[b], pair[b], fraction[b], fraction_hi[b], uncertain[b] = -1, -1, np.nan, np.nan, False
             point[b] = normal[b] = np.nan
-            for f in range(int(found.frame[b]), last):
-                t0, t1 = float(times[b, f]), float(times[b, f + 1])
-                c = a.check_poses(t0, t1, poses[b, f], poses[b, f + 1], new_only=new_only).first
-                if c is None:
-                    continue
-                step[b], pair[b], fraction[b] = f, c.pair, c.fraction
-                uncertain[b] = c.certainty == "uncertain"
-                span = t1 - t0 if t1 > t0 else self.model.opt.timestep
-                fraction_hi[b] = (c.bracket[1] - t0) / span if uncertain[b] else c.fraction
-                if c.point is not None:
-                    point[b], normal[b] = c.point, c.normal
-                break
+            hit = self._first_along(poses[b], times[b], int(found.frame[b]), stopped[b], new_only)
+            if hit is None:
+                continue
+            f, c = hit
+            step[b], pair[b], fraction[b] = f, c.pair, c.fraction
+            uncertain[b] = c.certainty == "uncertain"
+            t0, t1 = float(times[b, f]), float(times[b, f + 1])
+            span = t1 - t0 if t1 > t0 else self.model.opt.timestep
+            fraction_hi[b] = (c.bracket[1] - t0) / span if uncertain[b] else c.fraction
+            if c.point is not None:
+                point[b], normal[b] = c.point, c.normal
         for b in errors:
             ok[b] = False
             step[b] = pair[b] = -1

@@ -15,13 +15,14 @@ __all__ = [
     "static_status_many",
     "Plane", "plane_collision_intervals", "plane_first_contact", "solve_plane",
     "Scene", "FrameResult", "FrameCounters", "PairContact", "PlaneContact", "BatchScene", "BatchContacts",
+    "scan",
 ]
 __version__ = "0.1.0"
 
 # many ellipsoids per frame, and many worlds: imported on first use, so that ``import mjccd`` stays quick
 _LATER = {"Scene": "mjccd.scene", "FrameResult": "mjccd.scene", "FrameCounters": "mjccd.scene",
           "PairContact": "mjccd.scene", "PlaneContact": "mjccd.scene", "BatchScene": "mjccd.batch",
-          "BatchContacts": "mjccd.batch"}
+          "BatchContacts": "mjccd.batch", "scan": "mjccd.collection"}
 
 
 def __getattr__(name):

@@ -545,8 +545,21 @@ def fit_capsules(capsules):
     return radii * (1.0 + 1e-9), centre, matrix_to_quat(rotation)
 
 
+_BOUNDS = {}  # hierarchy and layout -> bounding_geoms' lines (the clips of one skeleton share their bounds)
+
+
 def bounding_geoms(clip, layout):
-    """MJCF lines of one bounding ellipsoid per rigid part, keyed by the joint whose body holds it."""
+    """MJCF lines of one bounding ellipsoid per rigid part, keyed by the joint whose body holds it.
+
+    With no frozen joint the parts depend only on the hierarchy (names, offsets, end sites, channels) and the
+    layout, so the fits are kept for the next clip of the same skeleton in this process.
+    """
+    key = None
+    if not layout.frozen:
+        key = (layout, tuple((j.name, j.parent, tuple(j.offset.tolist()), tuple(j.channels),
+                              tuple(tuple(e.tolist()) for e in j.end_sites)) for j in clip.joints))
+        if key in _BOUNDS:
+            return _BOUNDS[key]
     extra = {}
     names = mjcf_names(clip)
     for index, caps in rigid_groups(clip, layout).items():
@@ -554,6 +567,8 @@ def bounding_geoms(clip, layout):
         name = layout.prefix + names[index]
         extra[clip.joints[index].name] = [
             f'<geom name="{name}_bound" class="bound" size="{_fmt(radii)}" pos="{_fmt(centre)}" quat="{_fmt(quat)}"/>']
+    if key is not None:
+        _BOUNDS[key] = extra
     return extra
 
 
@@ -593,8 +608,11 @@ def model_xml(characters, *, model_name="bvh", floor=True, extra_worldbody=()):
     return "\n".join(parts)
 
 
-def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=()):
+def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=(), bounds=False):
     """Read a BVH file; return ``(xml, qpos (T, nq), time (T), clip)`` for one character.
+
+    ``bounds``: give each rigid part its bounding ellipsoid (:func:`bounding_geoms`, in the bounds' group), as
+    replay needs to choose the pairs of a model.
 
     The model is compiled by MuJoCo before it is returned (see
     :func:`check_model`), so a clip that cannot become a working model is
@@ -612,7 +630,7 @@ def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=()):
                        f"at most {MAX_LENGTH:g} m is accepted")
     layout = Layout(prefix, float(scale), Placement(), frozenset(frozen), start)
     name = os.path.splitext(os.path.basename(str(path)))[0]
-    xml = model_xml([(clip, layout, None)], model_name=name)
+    xml = model_xml([(clip, layout, bounding_geoms(clip, layout) if bounds else None)], model_name=name)
     frames = np.arange(start, clip.n_frames)
     qpos = qpos_trajectory(clip, layout, frames)
     time = (frames - start) * clip.frame_time

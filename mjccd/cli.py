@@ -79,6 +79,7 @@ DELEGATED = {
     "fit": ("mjccd.fit", "fit bounding ellipsoids to a MuJoCo model's bodies"),
     "import-bvh": ("mjccd.bvh", "convert a BVH motion-capture clip to an MJCF skeleton and qpos"),
     "replay": ("mjccd.replay", "replay a trajectory and report every first contact"),
+    "scan": ("mjccd.collection.command", "scan a collection of clips into Parquet tables (local processes or Ray)"),
     "warmup": ("mjccd.warmup", "compile every kernel now (numba caches them), one line per job"),
 }
 # bench suites: (module, what it measures)

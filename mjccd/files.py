@@ -90,6 +90,36 @@ def write_text(path, text):
         fh.write(text)
 
 
+def lock_folder(path):
+    """Lock the folder ``path`` for one run (``fcntl.flock`` on its lock file, made if missing) and return the lock's
+    file descriptor; an :class:`~mjccd.errors.OutputError` when another run holds it.  A killed run's lock goes
+    with its process."""
+    path = Path(path)
+    while True:
+        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputError(f"{path}: another run is writing into this folder; wait for it to end or "
+                              f"choose another folder") from None
+        try:  # the file a finishing run removed is no lock: take the one at the path now
+            if os.fstat(fd).st_ino == os.stat(path / LOCK).st_ino:
+                return fd
+        except FileNotFoundError:
+            pass
+        os.close(fd)
+
+
+def unlock_folder(path, fd):
+    """Release :func:`lock_folder`'s lock ``fd`` on ``path``, removing the lock file."""
+    try:
+        os.unlink(Path(path) / LOCK)
+    except FileNotFoundError:
+        pass
+    os.close(fd)
+
+
 class OutputFolder:
     """A folder of one run's outputs, written all-or-nothing and swapped in only when complete.
 
@@ -152,30 +182,12 @@ class OutputFolder:
         # only plain names inside this folder: a manifest never removes anything elsewhere
         return [f for f in files if isinstance(f, str) and f == os.path.basename(f) and f not in ("", ".", "..")]
 
-    def _take_lock(self):
-        """Lock the folder (its lock file, made if missing); OutputError when another run holds it."""
-        while True:
-            fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(fd)
-                raise OutputError(f"{self.path}: another run is writing into this folder; wait for it to end or "
-                                  f"choose another folder") from None
-            try:  # the file a finishing run removed is no lock: take the one at the path now
-                if os.fstat(fd).st_ino == os.stat(self.path / LOCK).st_ino:
-                    self._lock = fd
-                    return
-            except FileNotFoundError:
-                pass
-            os.close(fd)
-
     def __enter__(self):
         try:
             if not self.path.exists():
                 self.path.mkdir(parents=True)
                 self._created = True
-            self._take_lock()
+            self._lock = lock_folder(self.path)
             self._check_earlier_run()  # again, under the lock: a run may have ended since
             for name in os.listdir(self.path):  # staging folders of killed runs (none can be alive now)
                 if name.startswith(STAGING):
@@ -217,11 +229,7 @@ class OutputFolder:
             shutil.rmtree(self._staging, ignore_errors=True)
             self._staging = None
         if self._lock is not None:
-            try:
-                os.unlink(self.path / LOCK)
-            except FileNotFoundError:
-                pass
-            os.close(self._lock)
+            unlock_folder(self.path, self._lock)
             self._lock = None
         if self._created:
             try:

@@ -268,7 +268,7 @@ class Trajectory:
     read by rows) and a .bvh clip (converted whole by :mod:`mjccd.bvh` and kept).
     """
 
-    def __init__(self, traj, model, read_frames=READ_FRAMES):
+    def __init__(self, traj, model, read_frames=READ_FRAMES, *, arrays=None):
         if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):
             raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
         self.source = traj
@@ -281,7 +281,8 @@ class Trajectory:
         if suffix == ".bvh":
             from mjccd import bvh
 
-            _, qpos, time, _ = bvh.import_bvh(self.path)
+            # ``arrays``: the clip's (qpos, time) when the caller imported it already (mjccd.collection)
+            _, qpos, time, _ = bvh.import_bvh(self.path) if arrays is None else (None, *arrays, None)
             qpos = check_qpos(qpos, model, traj)
             if time is None:
                 time = self._computed_times(0, qpos.shape[0])
@@ -753,43 +754,14 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
     Returns:
         a :class:`ReplayResult`.
     """
-    if motion not in MOTIONS:
-        raise ReplayError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
-    chunk_frames = CHUNK_FRAMES[motion] if chunk_frames is None else chunk_frames
-    if not (isinstance(chunk_frames, (int, np.integer)) and chunk_frames >= 1):
-        raise ReplayError(f"chunk_frames: expected a positive integer, got {chunk_frames!r}")
+    chunk_frames, mode = _checked_options(motion, chunk_frames, planes, mode)
     read_frames = READ_FRAMES if read_frames is None else read_frames
     if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):  # before the model is loaded
         raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
-    if planes not in PLANE_RULES:  # before the model is loaded
-        raise ReplayError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {planes!r}")
-    try:
-        mode = check_mode(mode, motion)
-    except InputError as exc:
-        raise ReplayError(str(exc)) from None
     model = load_model(model_path)
-    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=str(model_path))
     trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
     folder = None if out_dir is None else output_folder(out_dir, force)
-    if mode == "geoms":
-        ids = ellipsoids.body_ids(model)
-        bodies = sorted({(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in pairs.tolist()})
-        checker = GeomChecker(model, ellipsoids, bodies, planes=False if planes == "none" else planes, stacklevel=2)
-        if not len(checker.pairs):
-            raise ReplayError(f"{model_path}: {checker.reason or 'no pair of geoms to check'}")
-        result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, checker.pairs,
-                              geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker,
-                              characters=_characters(model, checker.body),
-                              rigid_parts=_rigid_parts(model, checker.body))
-    else:
-        on_planes = replay_planes(model, ellipsoids, planes)
-        result = ReplayResult(str(model_path), str(traj), motion, trajectory.n_frames, ellipsoids, pairs,
-                              ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
-                              plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
-                                           for g in set(on_planes[:, 1].tolist())},
-                              characters=_characters(model, ellipsoids.body_ids(model)),
-                              rigid_parts=_rigid_parts(model, ellipsoids.body_ids(model)))
-        checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
+    checker, result = _prepared(model, str(model_path), trajectory, motion, pairs, planes, mode)
     highlights = Highlights(max_rendered) if folder is not None and render else None  # what render_frames draws
     if folder is None:
         _run(checker, trajectory, result, progress, chunk_frames, highlights)
@@ -806,6 +778,57 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
             raise OutputError(f"{exc.filename or out_dir}: cannot write: {exc.strerror or _reason(exc)}") from None
     result.files = [str(folder.file_path(name)) for name in folder.written]
     return result
+
+
+def replay_trajectory(model, trajectory, motion="rigid", *, source="model", pairs=None, planes="all", mode=None,
+                      chunk_frames=None, progress=False):
+    """:func:`replay` of a compiled model and an opened :class:`Trajectory`, with no output folder: what
+    :mod:`mjccd.collection` runs on each clip.  ``source`` names the model in messages and in the result."""
+    chunk_frames, mode = _checked_options(motion, chunk_frames, planes, mode)
+    checker, result = _prepared(model, source, trajectory, motion, pairs, planes, mode)
+    _run(checker, trajectory, result, progress, chunk_frames)
+    return result
+
+
+def _checked_options(motion, chunk_frames, planes, mode):
+    """``(chunk_frames, mode)`` with their defaults filled in; a :class:`ReplayError` naming a bad option."""
+    if motion not in MOTIONS:
+        raise ReplayError(f"motion: expected one of {', '.join(MOTIONS)}, got {motion!r}")
+    chunk_frames = CHUNK_FRAMES[motion] if chunk_frames is None else chunk_frames
+    if not (isinstance(chunk_frames, (int, np.integer)) and chunk_frames >= 1):
+        raise ReplayError(f"chunk_frames: expected a positive integer, got {chunk_frames!r}")
+    if planes not in PLANE_RULES:  # before the model is loaded
+        raise ReplayError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {planes!r}")
+    try:
+        return chunk_frames, check_mode(mode, motion)
+    except InputError as exc:
+        raise ReplayError(str(exc)) from None
+
+
+def _prepared(model, source, trajectory, motion, pairs, planes, mode):
+    """``(checker, result)``: the geom checker (geoms mode) or the ellipsoids' adapter of ``model``, and the empty
+    :class:`ReplayResult` the replay of ``trajectory`` fills."""
+    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=source)
+    if mode == "geoms":
+        ids = ellipsoids.body_ids(model)
+        bodies = sorted({(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in pairs.tolist()})
+        checker = GeomChecker(model, ellipsoids, bodies, planes=False if planes == "none" else planes, stacklevel=3)
+        if not len(checker.pairs):
+            raise ReplayError(f"{source}: {checker.reason or 'no pair of geoms to check'}")
+        result = ReplayResult(source, str(trajectory.source), motion, trajectory.n_frames, ellipsoids, checker.pairs,
+                              geom_row_labels(checker), source=trajectory, mode="geoms", geoms=checker,
+                              characters=_characters(model, checker.body),
+                              rigid_parts=_rigid_parts(model, checker.body))
+        return checker, result
+    on_planes = replay_planes(model, ellipsoids, planes)
+    result = ReplayResult(source, str(trajectory.source), motion, trajectory.n_frames, ellipsoids, pairs,
+                          ellipsoid_labels(ellipsoids), source=trajectory, plane_pairs=on_planes,
+                          plane_names={g: (geom_label(model, g), body_label(model, model.geom_bodyid[g]))
+                                       for g in set(on_planes[:, 1].tolist())},
+                          characters=_characters(model, ellipsoids.body_ids(model)),
+                          rigid_parts=_rigid_parts(model, ellipsoids.body_ids(model)))
+    checker = ModelAdapter(model, ellipsoids, pairs, motion, plane_pairs=on_planes if len(on_planes) else None)
+    return checker, result
 
 
 def _characters(model, body_ids):

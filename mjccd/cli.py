@@ -91,6 +91,7 @@ BENCH_SUITES = {
     "fidelity": ("mjccd.bench.fidelity", "recall, precision and cost of the wrappers on MuJoCo environments"),
     "batch": ("mjccd.bench.batch", "many worlds at once on the CPU threads"),
     "geoms": ("mjccd.bench.geoms", "the exact geom solver on MuJoCo's shape pairs, graded by mj_geomDistance"),
+    "scan": ("mjccd.bench.scan", "mjccd scan over a tiled clip collection; what a per-frame check misses"),
 }
 
 

@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from mjccd import files
+from mjccd.bench.options import REPOSITORY
 from mjccd.errors import InputError
 
-MOCAP = Path(__file__).resolve().parents[2] / "data" / "mocap"
+MOCAP = REPOSITORY / "data" / "mocap"  # found where mjccd runs from its source checkout
 DAMAGES = ("cut_short", "short_frame", "not_a_number", "empty")
 
 

@@ -138,7 +138,7 @@ def _check_clip(task, options):
     qpos = trajectory.qpos()
     turns = joint_turns(model, qpos)
     longest = 0.0
-    rest = _RestPose(model)
+    rest = RestPose(model)
     for p, runs in result.pair_runs():
         if not result.on_plane(p) and not rest.overlapping(*result.names(p)[0]):
             longest = max(longest, float(np.max(runs["end"] - runs["start"])))
@@ -165,7 +165,7 @@ CLIP_COLUMNS = ("clip", "key", "format", "frames", "duration_s", "self_contacts"
                 "longest_overlap_s", "max_floor_depth_m", "max_joint_turn_deg", "jump_frames", "flags", "error")
 
 
-class _RestPose:
+class RestPose:
     """The model in its reference pose (qpos0: a skeleton's rest pose), to tell which pairs overlap by
     construction (two capsules meeting at the hips) from those that penetrate."""
 

@@ -200,3 +200,30 @@ def test_a_clip_with_the_bytes_of_another_is_scanned_once(collection, tmp_path):
     report = ScanReport()
     _, clips = scan([collection[1][0], copy], tmp_path / "o", workers=1, progress=False, report=report)
     assert clips.num_rows == 1 and report.repeats == [str(copy)]
+
+
+def test_ray_missing_is_named(collection, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray raises ImportError
+    with pytest.raises(InputError, match=r"mjccd\[ray\]"):
+        scan([collection[1][0]], tmp_path / "o", engine="ray", workers=1, progress=False)
+    assert not (tmp_path / "o").exists()  # refused before the folder is made
+
+
+def test_a_per_frame_check_finds_nothing_the_scan_missed(collection):
+    """MuJoCo's own distance on every frame of every checked pair: no overlap outside the scan's runs."""
+    from mjccd.bench.scan import miss_counts
+
+    for path in [p for p in collection[1] if "clip_" in p][:2]:
+        counts = miss_counts(path)
+        assert counts["discrete_only"] == 0 and counts["frames"] == 120
+        assert counts["contacts_every"] <= counts["contacts"] and counts["runs_third"] <= counts["runs_every"]
+
+
+def test_bench_scan_quick_writes_its_section(tmp_path, capsys):
+    from mjccd.bench.scan import main as bench
+
+    target = tmp_path / "bench.md"
+    assert bench(["--quick", "--clips", "3", "--frames", "130", "--miss-clips", "1", "--no-ray",
+                  "--markdown", str(target)]) == 0
+    text = target.read_text()
+    assert "<!-- bench scan: begin -->" in text and "| process pool | 2 |" in text and "only continuous" in text

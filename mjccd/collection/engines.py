@@ -36,10 +36,7 @@ def process_pool(batches, options, workers):
 def ray_tasks(batches, options, workers, address=None):
     """The batches as Ray tasks: on a local Ray of ``workers`` CPUs (started and stopped here), or on the
     cluster at ``address`` (every worker needs mjccd installed and the clips at the same paths)."""
-    try:
-        import ray
-    except ImportError:
-        raise InputError("engine 'ray' needs Ray: pip install 'mjccd[ray]'") from None
+    ray = _ray()
     started = not ray.is_initialized()
     if started:
         if address is None:
@@ -61,12 +58,27 @@ def ray_tasks(batches, options, workers, address=None):
             ray.shutdown()
 
 
-def run_batches(batches, options, *, engine="pool", workers=1, address=None):
-    """The engine's generator for ``batches`` (lists of :class:`~mjccd.collection.clips.ClipTask`)."""
+def _ray():
+    try:
+        import ray
+    except ImportError:
+        raise InputError("engine 'ray' needs Ray: pip install 'mjccd[ray]'") from None
+    return ray
+
+
+def check_engine(engine, address=None):
+    """Refuse an unknown engine, an address without Ray, or Ray where it does not import, before any work."""
     if engine not in ENGINES:
         raise InputError(f"engine: expected one of {', '.join(ENGINES)}, got {engine!r}")
     if engine == "ray":
-        return ray_tasks(batches, options, workers, address)
-    if address is not None:
+        _ray()
+    elif address is not None:
         raise InputError("address: only the 'ray' engine runs on a cluster")
+
+
+def run_batches(batches, options, *, engine="pool", workers=1, address=None):
+    """The engine's generator for ``batches`` (lists of :class:`~mjccd.collection.clips.ClipTask`)."""
+    check_engine(engine, address)
+    if engine == "ray":
+        return ray_tasks(batches, options, workers, address)
     return in_process(batches, options) if workers == 1 else process_pool(batches, options, workers)

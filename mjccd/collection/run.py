@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 from mjccd.collection.checks import ScanOptions
 from mjccd.collection.clips import clip_tasks, file_digest, find_clips, options_digest
-from mjccd.collection.engines import run_batches
+from mjccd.collection.engines import check_engine, run_batches
 from mjccd.collection.tables import ScanFolder, read_tables
 from mjccd.errors import InputError
 
@@ -66,6 +66,7 @@ def scan(sources, out, *, model=None, workers=None, engine="pool", address=None,
     workers = os.cpu_count() or 1 if workers is None else workers
     if not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers: expected a positive integer, got {workers!r}")
+    check_engine(engine, address)
     paths = find_clips(sources)
     if options.model is None and any(p.lower().endswith(".npz") for p in paths):
         raise InputError("model: the .npz clips are qpos of a model; name it (--model MODEL.xml)")

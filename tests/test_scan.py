@@ -227,3 +227,10 @@ def test_bench_scan_quick_writes_its_section(tmp_path, capsys):
                   "--markdown", str(target)]) == 0
     text = target.read_text()
     assert "<!-- bench scan: begin -->" in text and "| process pool | 2 |" in text and "only continuous" in text
+
+
+def test_tables_as_pandas(scanned):
+    pytest.importorskip("pandas")
+    contacts, clips = read_tables(scanned[0], pandas=True)
+    assert len(clips) == 40 and list(contacts.columns) == scanned[1][0].column_names
+    assert contacts["px"].isna().sum() == sum(r["kind"] == "continuing" for r in scanned[1][0].to_pylist())

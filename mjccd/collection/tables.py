@@ -134,6 +134,11 @@ class ScanFolder:
 def read_tables(folder, *, pandas=False):
     """``(contacts, clips)`` of a scan's folder, sorted by clip (then frame): pyarrow tables, or pandas frames."""
     pa = _pyarrow()
+    if pandas:
+        try:
+            import pandas  # noqa: F401
+        except ImportError:
+            raise InputError("pandas=True needs pandas, which is not installed: pip install pandas") from None
     folder = Path(folder)
     out = []
     for sub, schema, order in ((CONTACTS, schemas()[0], CONTACT_ORDER), (CLIPS, schemas()[1], CLIP_ORDER)):

@@ -265,7 +265,8 @@ class Trajectory:
     with the same messages (file, frame, joint) and in the same order, keeping none of the
     frames; :meth:`chunks` then reads them again, in order.  Memory does not grow with the
     number of frames, except for a ``qpos`` stored in Fortran order (read whole, it cannot be
-    read by rows) and a .bvh clip (converted whole by :mod:`mjccd.bvh` and kept).
+    read by rows) and a .bvh clip (converted whole by :mod:`mjccd.bvh` and kept; ``arrays``: its ``(qpos, time)``
+    when the caller has converted it already).
     """
 
     def __init__(self, traj, model, read_frames=READ_FRAMES, *, arrays=None):

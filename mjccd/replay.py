@@ -760,9 +760,10 @@ def replay(model_path, traj, motion="rigid", out_dir=None, *, pairs=None, planes
     if not (isinstance(read_frames, (int, np.integer)) and read_frames >= 1):  # before the model is loaded
         raise ReplayError(f"read_frames: expected a positive integer, got {read_frames!r}")
     model = load_model(model_path)
+    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=str(model_path))
     trajectory = Trajectory(traj, model, read_frames)  # reads and checks every frame, keeps none
     folder = None if out_dir is None else output_folder(out_dir, force)
-    checker, result = _prepared(model, str(model_path), trajectory, motion, pairs, planes, mode)
+    checker, result = _prepared(model, str(model_path), trajectory, motion, ellipsoids, pairs, planes, mode)
     highlights = Highlights(max_rendered) if folder is not None and render else None  # what render_frames draws
     if folder is None:
         _run(checker, trajectory, result, progress, chunk_frames, highlights)
@@ -786,7 +787,8 @@ def replay_trajectory(model, trajectory, motion="rigid", *, source="model", pair
     """:func:`replay` of a compiled model and an opened :class:`Trajectory`, with no output folder: what
     :mod:`mjccd.collection` runs on each clip.  ``source`` names the model in messages and in the result."""
     chunk_frames, mode = _checked_options(motion, chunk_frames, planes, mode)
-    checker, result = _prepared(model, source, trajectory, motion, pairs, planes, mode)
+    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=source)
+    checker, result = _prepared(model, source, trajectory, motion, ellipsoids, pairs, planes, mode)
     _run(checker, trajectory, result, progress, chunk_frames)
     return result
 
@@ -806,10 +808,10 @@ def _checked_options(motion, chunk_frames, planes, mode):
         raise ReplayError(str(exc)) from None
 
 
-def _prepared(model, source, trajectory, motion, pairs, planes, mode):
-    """``(checker, result)``: the geom checker (geoms mode) or the ellipsoids' adapter of ``model``, and the empty
-    :class:`ReplayResult` the replay of ``trajectory`` fills."""
-    ellipsoids, pairs = replay_ellipsoids(model, pairs, source=source)
+def _prepared(model, source, trajectory, motion, ellipsoids, pairs, planes, mode):
+    """``(checker, result)``: the geom checker (geoms mode) or the ellipsoids' adapter of ``model``, its
+    ``ellipsoids`` and ``pairs`` (:func:`replay_ellipsoids`), and the empty :class:`ReplayResult` the replay of
+    ``trajectory`` fills."""
     if mode == "geoms":
         ids = ellipsoids.body_ids(model)
         bodies = sorted({(min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j]))) for i, j in pairs.tolist()})

@@ -27,7 +27,7 @@ MUJOCO_FILES = {
     "test_bvh_fit_files.py", "test_tunneling_benchmark.py", "test_bench_monitor.py", "test_bench_peers.py",
     "test_adapter.py", "test_pairs.py", "test_bench_fidelity.py", "test_rollout.py", "test_geoms_mode.py",
     "test_fit_cache.py", "test_default_fidelity.py", "test_spool.py", "test_docs.py", "test_geom_steps.py", "test_settle.py",
-    "test_scan.py",
+    "test_scan.py", "test_vector_envs.py",
 }
 
 

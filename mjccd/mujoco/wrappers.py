@@ -332,6 +332,19 @@ class CCDWrapper(DelegatingEnvironment):
         self.last_contacts, self.last_reports, self.last_unstable = [], [], False
         self._idle = len(self.monitor.pairs) == 0 and len(self.monitor.plane_pairs) == 0  # (warned why)
         self._substeps = None  # the PhysicsSubsteps of the physics last stepped
+        self._options = dict(pairs=pairs, motion=motion, on_contact=on_contact, all_pairs=all_pairs,
+                             report_overlapping=report_overlapping, per=per, planes=planes, mode=mode)
+
+    def __getstate__(self):
+        """What rebuilds the wrapper: the environment (a dm-control one pickles its whole physics), the
+        ellipsoids, the options and the last step's results; the monitor (a lock, views of the physics' data)
+        is not pickled but built anew on the unpickled physics."""
+        return {"env": self._env, "ellipsoids": self.ellipsoids, "options": self._options,
+                "last": (self.last_contacts, self.last_reports, self.last_unstable)}
+
+    def __setstate__(self, state):
+        self.__init__(state["env"], state["ellipsoids"], **state["options"])
+        self.last_contacts, self.last_reports, self.last_unstable = state["last"]
 
     def _with_ccd(self, timestep, recorded):
         entries = self._recorder.observation() if recorded else SubstepRecorder(self.monitor).observation()

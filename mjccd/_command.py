@@ -37,3 +37,16 @@ class PlainHelpFormatter(argparse.HelpFormatter):
 
     def format_help(self):
         return plain(super().format_help())
+
+
+def whole_number(low, noun):
+    """An argparse type: a whole number of ``noun`` (a plural: "rows", "workers"), ``low`` or more."""
+    def parse(text):
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number of {noun}, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"expected {low} or more {noun}, got {value}")
+        return value
+    return parse

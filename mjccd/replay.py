@@ -59,7 +59,7 @@ from mjccd.mujoco.motions import State, as_state
 from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.scene import FrameCounters
-from mjccd._command import PlainHelpFormatter
+from mjccd._command import PlainHelpFormatter, whole_number
 
 MOTIONS = ("rigid", "affine", "chain")
 PLANE_RULES = ("all", "mujoco", "none")  # which static planes each ellipsoid is checked against (replay_planes)
@@ -1372,17 +1372,6 @@ def render_frames(model, highlights, folder, bounds=True):
 # ---------------------------------------------------------------- command line
 
 
-def _row_count(text):
-    """argparse type of ``--rows``: a non-negative integer."""
-    try:
-        rows = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number of rows, got {text!r}") from None
-    if rows < 0:
-        raise argparse.ArgumentTypeError(f"expected 0 or more rows, got {rows}")
-    return rows
-
-
 def _folder_name(text):
     """argparse type of ``--out``: a non-empty folder name."""
     if not text.strip():
@@ -1438,7 +1427,8 @@ def main(argv=None):
     parser.add_argument("--force", action="store_true",
                         help="write into an --out folder that holds an earlier run, removing that run's files")
     parser.add_argument("--no-render", action="store_true", help="do not render frames")
-    parser.add_argument("--rows", type=_row_count, default=30, help="rows of the contact table (default 30)")
+    parser.add_argument("--rows", type=whole_number(0, "rows"), default=30,
+                        help="rows of the contact table (default 30)")
     parser.add_argument("--intervals", action="store_true",
                         help="also print every pair's collision intervals over each segment between the "
                              "trajectory's keyframes (npz 'keyframes', chain motion)")

@@ -317,15 +317,6 @@ def bench_workload(name, make, radii, pairs, args, threads, progress):
 # ---------------------------------------------------------------- report
 
 
-def _load():
-    """The 1-minute load average (NaN where the system does not tell): other work on the machine slows the
-    threads' hand-over at each call."""
-    try:
-        return os.getloadavg()[0]
-    except OSError:
-        return float("nan")
-
-
 def _rate(x):
     return f"{x / 1e6:.2f} M"
 
@@ -394,13 +385,10 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=3, help="timed repeats of each measurement (default 3)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--markdown", metavar="FILE", help="write the tables into this markdown file")
-    options.add_quick(parser, QUICK)
-    args = options.parse(parser, argv, QUICK)
-    options.check_ranges(parser, args, RANGES)
-    options.check_markdown(parser, args.markdown, ())
+    args = options.parse_checked(parser, argv, QUICK, RANGES)
     from tqdm import tqdm
 
-    begin, load = time.perf_counter(), [_load()]
+    begin, load = time.perf_counter(), [options.load_average()]
     threads = numba.get_num_threads()
     results, skipped, plans = [], [], []
     if "boxing" in args.workloads:
@@ -418,7 +406,7 @@ def main(argv=None):
         for name, make, radii, pairs in plans:
             results.append(bench_workload(name, make, radii, pairs, args, threads, progress))
     command = "mjccd bench batch" + ("" if argv is None else " " + " ".join(argv))
-    load.append(_load())
+    load.append(options.load_average())
     text = markdown(results, skipped, args, command, threads, time.perf_counter() - begin, load)
     print(text)
     if args.markdown:

@@ -395,10 +395,7 @@ def main(argv=None):
                         help="control steps of each environment timed, plain and wrapped (default 500)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--markdown", metavar="FILE", help="write the table into this markdown file")
-    options.add_quick(parser, QUICK)
-    args = options.parse(parser, argv, QUICK)
-    options.check_ranges(parser, args, RANGES)
-    options.check_markdown(parser, args.markdown, ())
+    args = options.parse_checked(parser, argv, QUICK, RANGES)
     begin = time.perf_counter()
     rows, skipped = [], []
     per_env = 3  # setups per environment (see setups)

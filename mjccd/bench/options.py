@@ -97,3 +97,22 @@ def repository_input(parser, option, path, relative, size):
         parser.error(f"{option}: {relative} ({size}) is not part of the installed package; pass {option} "
                      f"with its path in a checkout of the mjccd source repository, or run with --quick")
     return str(candidate)
+
+
+def parse_checked(parser, argv, quick, ranges, inputs=()):
+    """``--quick`` added, ``argv`` parsed (:func:`parse`), its ranges and ``--markdown`` checked against ``inputs``
+    (:func:`check_ranges`, :func:`check_markdown`): what most suites do before they measure."""
+    add_quick(parser, quick)
+    args = parse(parser, argv, quick)
+    check_ranges(parser, args, ranges)
+    check_markdown(parser, args.markdown, inputs)
+    return args
+
+
+def load_average():
+    """The 1-minute load average (NaN where the system does not tell): other work on the machine slows what is
+    timed."""
+    try:
+        return os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return float("nan")

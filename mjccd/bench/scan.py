@@ -46,10 +46,6 @@ RANGES = {"clips": (1, 100000), "frames": (2, 10 ** 7), "repeats": (1, 100), "wo
           "miss_clips": (0, 100000)}
 
 
-def _load():
-    return os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-
-
 def time_engine(folder, runs, **kwargs):
     """Seconds of each of ``runs`` scans of ``folder`` into a fresh output folder, and the tables of the last."""
     seconds, tables = [], None
@@ -154,11 +150,8 @@ def main(argv=None):
     parser.add_argument("--no-ray", action="store_true", help="leave Ray out")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--markdown", metavar="FILE", help="write the tables into this markdown file")
-    options.add_quick(parser, QUICK)
-    args = options.parse(parser, argv, QUICK)
-    options.check_ranges(parser, args, RANGES)
-    options.check_markdown(parser, args.markdown, ())
-    begin, load = time.perf_counter(), [_load()]
+    args = options.parse_checked(parser, argv, QUICK, RANGES)
+    begin, load = time.perf_counter(), [options.load_average()]
     with tempfile.TemporaryDirectory() as work:
         folder = os.path.join(work, "clips")
         paths = tile_collection(folder, args.clips, args.frames, seed=args.seed)
@@ -187,7 +180,7 @@ def main(argv=None):
             for path in paths[:args.miss_clips]:
                 for key, value in miss_counts(path).items():
                     miss[key] = miss.get(key, 0) + value
-    load.append(_load())
+    load.append(options.load_average())
     command = "mjccd bench scan" + ("" if argv is None else " " + " ".join(argv))
     text = markdown(rows, miss, args, command, time.perf_counter() - begin, load, frames)
     print(text)

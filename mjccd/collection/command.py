@@ -8,19 +8,9 @@ from mjccd.collection.run import ScanReport, scan
 from mjccd.collection.tables import CLIPS, CONTACTS
 from mjccd.errors import MjccdError
 from mjccd.replay import MOTIONS, PLANE_RULES
-from mjccd._command import PlainHelpFormatter
+from mjccd._command import PlainHelpFormatter, whole_number
 
 DEFAULTS = ScanOptions()
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
 
 
 def _amount(text):
@@ -46,13 +36,14 @@ def build_parser():
                                                            "holds a scan with the same settings)")
     parser.add_argument("--model", help="MJCF model the .npz qpos clips move (BVH clips each get their own "
                                         "skeleton, as mjccd import-bvh builds it)")
-    parser.add_argument("--workers", type=_positive_int, help="processes or Ray CPUs (default: every core)")
+    parser.add_argument("--workers", type=whole_number(1, "workers"),
+                        help="processes or Ray CPUs (default: every core)")
     parser.add_argument("--engine", choices=ENGINES, default="pool",
                         help="'pool': local processes (the default); 'ray': Ray tasks (pip install 'mjccd[ray]')")
     parser.add_argument("--address", help="the Ray cluster to run on (ray://HEAD:10001 or HEAD:6379); default: "
                                           "a local Ray of --workers CPUs")
-    parser.add_argument("--batch", type=_positive_int, help="clips per part of the tables (default: about four "
-                                                            "batches per worker, at most 16 clips)")
+    parser.add_argument("--batch", type=whole_number(1, "clips"),
+                        help="clips per part of the tables (default: about four batches per worker, at most 16 clips)")
     parser.add_argument("--motion", choices=MOTIONS, default=DEFAULTS.motion, help="motion between frames")
     parser.add_argument("--mode", choices=("geoms", "ellipsoids"),
                         help="what touches: the model's own geoms (the default with --motion rigid) or its "

@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # the first run compiles the kernels the replay needs (one to two minutes of CPU on 2 cores, with a note on
-# stderr); numba caches them next to the sources, so later runs start at once
+# stderr); numba caches them in mjccd/__pycache__, so later runs start at once
 demo: $(STAMP)
 	$(VENV)/bin/mjccd replay models/boxing.xml data/boxing_traj.npz --out replay-out --force
 

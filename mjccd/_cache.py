@@ -1,26 +1,41 @@
-"""Where numba keeps mjccd's compiled kernels, and a note on stderr while kernels compile.
+"""Where numba keeps mjccd's compiled kernels, keyed so that they are never stale, and a note on stderr while
+kernels compile.
 
-:mod:`mjccd` imports this module before anything that imports numba.  numba caches a
-kernel next to its source (``__pycache__``) when it can write there.  An install it
-cannot write to (a system or read-only site-packages) gets ``NUMBA_CACHE_DIR`` set to
-``$XDG_CACHE_HOME/mjccd`` (or ``~/.cache/mjccd``): the kernels compile once per user, in a
-folder named after mjccd (numba's own fallback, a folder under ``~/.cache/numba``, is left
-for when that one cannot be made).  A ``NUMBA_CACHE_DIR`` the user set is never replaced.
-numba reads ``NUMBA_CACHE_DIR`` for every cached function of the process, so on such an
-install the caches of other numba code go to that folder as well (each under a subfolder
-named after its source folder).
+*Never stale.*  numba checks a cached kernel against its own source file only, so an edit of a kernel it calls
+in another file, or an upgrade that changes one, would run the old compiled code (numba issue #1833).  mjccd's
+kernels are therefore cached in a folder named by a key: a hash of ``mjccd/__init__.py`` (the version) and of
+every source file of the package that imports numba at module level or decorates a function with a jit
+decorator, the files the kernels are compiled from, with :data:`CONSTANT_SOURCES`, whose constants they read.
+Any change to those files is a new folder, compiled afresh.  Other files (replay, the command line) leave the
+key alone; tests/test_install.py checks that no kernel reads a value from them.
 
-Compiling is the slow part of first use (one to two minutes of CPU for the demo's replay
-on 2 cores, see docs/benchmarks.md, "First use"): while mjccd's kernels compile (not when
-they load from the cache) ``mjccd: compiling kernels (first use only)…`` goes to stderr
-once, with the kernels compiled and the seconds so far on a terminal, progress lines in a
-log and the totals of long compiles (:class:`CompileNotice`).  It listens to numba's
-compile events, so nothing runs when nothing compiles.
+*Where.*  ``mjccd/__pycache__/kernels-KEY`` when the package folder is writable (other keys there, left by
+earlier versions of this install, are removed); else ``$XDG_CACHE_HOME/mjccd/kernels-KEY`` (or
+``~/.cache/mjccd``); else a folder in the system's temporary folder.  A ``NUMBA_CACHE_DIR`` the user set holds
+them instead (``$NUMBA_CACHE_DIR/mjccd/kernels-KEY``).  Nothing else changes: the user's other numba code keeps
+numba's own cache rules, and no environment variable is set.
+
+*How.*  Two narrow hooks into ``numba.core.caching`` (numba is capped below its next minor version in
+pyproject.toml, and tests/test_install.py fails on another): ``KernelLocator`` goes first in numba's list
+of cache locators and answers for mjccd's source files only, and a cache of mjccd's that cannot be read or
+written (a corrupt index, a full disk) is skipped with one :class:`KernelCacheWarning`: the kernel is compiled
+instead, never an error blamed on the user's input.
+
+*Notice.*  Compiling is the slow part of first use (one to two minutes of CPU for the demo's replay on 2 cores,
+see docs/benchmarks.md, "First use"): while mjccd's kernels compile (not when they load from the cache)
+``mjccd: compiling kernels (first use only)…`` goes to stderr once, with the kernels compiled and the seconds
+so far on a terminal, progress lines in a log and the totals of long compiles (:class:`CompileNotice`).  It
+listens to numba's compile events, so nothing runs when nothing compiles.
 """
 import contextlib
+import hashlib
 import os
+import re
+import shutil
 import sys
+import tempfile
 import time
+import warnings
 
 PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
 MESSAGE = "mjccd: compiling kernels (first use only)…"
@@ -28,6 +43,14 @@ NOTICE_DELAY = 0.5     # s: a compile shorter than this prints nothing
 REDRAW_EVERY = 0.5     # s: terminal progress updates
 LOG_EVERY = 30.0       # s: progress lines when stderr is not a terminal
 LONG_RUN = 5.0         # s: in a log, a run this long ends with a line of totals
+KEY_PREFIX = "kernels-"
+# modules without kernels whose constants kernels read (tests/test_install.py finds any other)
+CONSTANT_SOURCES = ("_validate.py",)
+_KERNEL_FILE = re.compile(rb"^(import numba|from numba)|^\s*@\w*jit", re.M)  # numba imported, or a jit decorator
+
+
+class KernelCacheWarning(RuntimeWarning):
+    """mjccd's kernel cache could not be read or written; the kernels are compiled instead."""
 
 
 def user_cache_dir(environ=os.environ):
@@ -36,60 +59,149 @@ def user_cache_dir(environ=os.environ):
     return os.path.join(base, "mjccd")
 
 
-def _kernel_folders(package_dir):
-    """The package folder and its subpackages: numba writes a ``__pycache__`` into each."""
-    folders = [package_dir]
-    for name in sorted(os.listdir(package_dir)):
-        sub = os.path.join(package_dir, name)
-        if os.path.isfile(os.path.join(sub, "__init__.py")):
-            folders.append(sub)
-    return folders
+def kernel_sources(package_dir=PACKAGE_DIR):
+    """The package's files the key covers (paths relative to ``package_dir``, sorted): ``__init__.py``, every
+    source file that imports numba at module level or decorates a function with a jit decorator, and
+    :data:`CONSTANT_SOURCES`."""
+    found = []
+    for folder, subfolders, names in os.walk(package_dir):
+        subfolders[:] = sorted(d for d in subfolders if d != "__pycache__")
+        for name in names:
+            if not name.endswith(".py"):
+                continue
+            path = os.path.join(folder, name)
+            rel = os.path.relpath(path, package_dir)
+            with open(path, "rb") as fh:
+                text = fh.read()
+            if rel == "__init__.py" or rel in CONSTANT_SOURCES or _KERNEL_FILE.search(text):
+                found.append(rel)
+    return sorted(found)
+
+
+def kernel_key(package_dir=PACKAGE_DIR):
+    """The hash of :func:`kernel_sources` (their paths and bytes), 16 hex digits."""
+    digest = hashlib.sha256()
+    for rel in kernel_sources(package_dir):
+        with open(os.path.join(package_dir, rel), "rb") as fh:
+            digest.update(rel.replace(os.sep, "/").encode() + b"\0" + fh.read() + b"\0")
+    return digest.hexdigest()[:16]
 
 
 def _writable(folder):
-    """True when a cache can be written into ``folder/__pycache__`` (made if missing)."""
-    pycache = os.path.join(folder, "__pycache__")
-    if os.path.isdir(pycache):
-        return os.access(pycache, os.W_OK | os.X_OK)
-    return os.access(folder, os.W_OK | os.X_OK)
-
-
-def cache_dir(environ=os.environ, package_dir=PACKAGE_DIR):
-    """The ``NUMBA_CACHE_DIR`` mjccd needs, or None to leave numba's choice alone.
-
-    None when ``NUMBA_CACHE_DIR`` is set (the user's choice) or when every folder of the
-    package is writable (numba's default: next to the sources); else :func:`user_cache_dir`.
-    """
-    if environ.get("NUMBA_CACHE_DIR"):
-        return None
+    """True when ``folder`` exists (or can be made) and a file can be created in it."""
     try:
-        folders = _kernel_folders(package_dir)
-    except OSError:  # the package folder cannot even be listed
-        folders = [package_dir]
-    if all(_writable(folder) for folder in folders):
-        return None
-    return user_cache_dir(environ)
-
-
-def configure(environ=os.environ, package_dir=PACKAGE_DIR):
-    """Set ``NUMBA_CACHE_DIR`` when :func:`cache_dir` asks for it; returns the folder set, or None.
-
-    A folder that cannot be made is left unset: numba then tries its own user-wide cache
-    (``~/.cache/numba``), or compiles without caching.
-    """
-    path = cache_dir(environ, package_dir)
-    if path is None:
-        return None
-    try:
-        os.makedirs(path, exist_ok=True)
+        os.makedirs(folder, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+        return True
     except OSError:
-        return None
-    environ["NUMBA_CACHE_DIR"] = path
-    if environ is os.environ and "numba" in sys.modules:  # numba came first and has read its settings
-        from numba.core import config
+        return False
 
-        config.reload_config()
-    return path
+
+def kernel_cache_root(key, environ=os.environ, package_dir=PACKAGE_DIR):
+    """The folder of the kernels compiled from the sources of ``key`` (module docstring), made if missing."""
+    name = KEY_PREFIX + key
+    if environ.get("NUMBA_CACHE_DIR"):
+        candidates = [os.path.join(environ["NUMBA_CACHE_DIR"], "mjccd", name)]
+    else:
+        candidates = [os.path.join(package_dir, "__pycache__", name), os.path.join(user_cache_dir(environ), name)]
+    candidates.append(os.path.join(tempfile.gettempdir(), f"mjccd-{_user()}", name))
+    for root in candidates:
+        if _writable(root):
+            return root
+    return None
+
+
+def _user():
+    try:
+        return str(os.getuid())
+    except AttributeError:  # no uid (Windows)
+        return os.environ.get("USERNAME", "user")
+
+
+def remove_other_keys(root):
+    """Remove the kernel folders of other keys beside ``root`` when it lies in the package's own ``__pycache__``
+    (left by earlier versions of this install; a shared user cache may serve other installs and is left)."""
+    parent = os.path.dirname(root)
+    if os.path.dirname(parent) != PACKAGE_DIR:
+        return
+    for name in os.listdir(parent):
+        if name.startswith(KEY_PREFIX) and os.path.join(parent, name) != root:
+            shutil.rmtree(os.path.join(parent, name), ignore_errors=True)
+
+
+_ROOT = []   # [root folder or None] once the first kernel asked for it
+_WARNED = []
+
+
+def _kernel_root():
+    if not _ROOT:
+        root = kernel_cache_root(kernel_key())
+        if root is not None:
+            remove_other_keys(root)
+        _ROOT.append(root)
+    return _ROOT[0]
+
+
+def _inside_package(path):
+    try:
+        return os.path.commonpath([os.path.abspath(path), PACKAGE_DIR]) == PACKAGE_DIR
+    except ValueError:  # another drive
+        return False
+
+
+def install_hooks():
+    """Put ``KernelLocator`` first among numba's cache locators and guard mjccd's caches (module docstring);
+    once per process."""
+    from numba.core import caching
+
+    if any(getattr(cls, "mjccd_kernels", False) for cls in caching.CacheImpl._locator_classes):
+        return
+
+    class KernelLocator(caching._CacheLocator):
+        """mjccd's kernels in the folder of their key, a subfolder per package folder."""
+
+        mjccd_kernels = True
+
+        def __init__(self, py_func, py_file, root):
+            self._lineno = py_func.__code__.co_firstlineno
+            rel = os.path.relpath(os.path.dirname(os.path.abspath(py_file)), PACKAGE_DIR)
+            self._cache_path = os.path.join(root, "mjccd" if rel == "." else "mjccd." + rel.replace(os.sep, "."))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+        def get_source_stamp(self):
+            return os.path.basename(os.path.dirname(self._cache_path))  # the key: one folder, one stamp
+
+        def get_disambiguator(self):
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not _inside_package(py_file):
+                return None
+            root = _kernel_root()
+            return None if root is None else cls(py_func, py_file, root)
+
+    unguarded = caching.Cache._guard_against_spurious_io_errors
+
+    @contextlib.contextmanager
+    def guarded(self):
+        if not getattr(getattr(self._impl, "locator", None), "mjccd_kernels", False):
+            with unguarded(self):
+                yield
+            return
+        try:
+            yield
+        except Exception as exc:  # noqa: BLE001 -- an unusable cache file is a compile, never a failure
+            if not _WARNED:
+                _WARNED.append(exc)
+                warnings.warn(f"mjccd: the kernel cache in {self._cache_path} cannot be used "
+                              f"({type(exc).__name__}: {exc}); compiling the kernels instead", KernelCacheWarning,
+                              stacklevel=2)
+
+    caching.CacheImpl._locator_classes.insert(0, KernelLocator)
+    caching.Cache._guard_against_spurious_io_errors = guarded
 
 
 class CompileNotice:
@@ -226,5 +338,5 @@ def install_notice():
     return _NOTICE
 
 
-configure()
+install_hooks()
 install_notice()

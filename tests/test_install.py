@@ -6,13 +6,14 @@ would reuse) and the wheel from the sdist, so both carry what they must (package
 LICENSE, NOTICE).  The wheel goes with ``pip --no-deps`` into a fresh virtual environment
 that sees this environment's packages through a ``.pth`` file (no second download of
 numpy, numba or mujoco); each ``mjccd bench <suite> --quick`` then runs from an empty
-folder outside the repository.  The numba caches of this checkout are copied next to the
-installed copies of the same sources, so the kernels load instead of compiling for
-minutes (a fresh install compiles them on first use: docs/benchmarks.md, "First use").
+folder outside the repository.  The compiled kernels of this checkout are copied to the
+installed copy of the same sources, so they load instead of compiling for minutes (a fresh
+install compiles them on first use: docs/benchmarks.md, "First use").
 
-The first-use tests at the end check where numba's cache goes (next to the sources, or the
-user's cache folder for a read-only install, never over the user's own ``NUMBA_CACHE_DIR``),
-the compile notice and ``mjccd warmup``.
+The first-use tests at the end check where the compiled kernels go and that they are never
+stale (mjccd._cache: keyed on their sources, a callee edited in another file compiles afresh;
+a corrupt or unwritable cache compiles with one warning), the compile notice and
+``mjccd warmup``.
 """
 import io
 import os
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import sysconfig
 import tarfile
+import tempfile
 import time
 import venv
 import zipfile
@@ -68,21 +70,16 @@ def _copy_checkout(dest):
 
 
 def _reuse_compiled_kernels(site):
-    """Copy this checkout's numba caches next to the installed copies of the same sources, with their times.
+    """Copy this checkout's compiled kernels to the installed copy when its kernel sources are the same (the same
+    key, mjccd._cache): they then load instead of compiling; other sources compile afresh."""
+    from mjccd import _cache
 
-    numba keys a cache on the source file's modification time and size: a kernel the repository's
-    own runs compiled then loads; a source that differs from the installed one is left to compile.
-    """
-    for source in (ROOT / "mjccd").rglob("*.py"):
-        installed = site / source.relative_to(ROOT)
-        caches = list(source.parent.glob(f"__pycache__/{source.stem}.*.nb[ic]"))
-        if not caches or not installed.is_file() or installed.read_bytes() != source.read_bytes():
-            continue
-        stat = source.stat()
-        os.utime(installed, ns=(stat.st_atime_ns, stat.st_mtime_ns))
-        (installed.parent / "__pycache__").mkdir(exist_ok=True)
-        for cache in caches:
-            shutil.copy2(cache, installed.parent / "__pycache__" / cache.name)
+    key = _cache.kernel_key()
+    if _cache.kernel_key(str(site / "mjccd")) != key:
+        return
+    ours = ROOT / "mjccd" / "__pycache__" / (_cache.KEY_PREFIX + key)
+    if ours.is_dir():
+        shutil.copytree(ours, site / "mjccd" / "__pycache__" / ours.name, dirs_exist_ok=True)
 
 
 @pytest.fixture(scope="module")
@@ -166,92 +163,184 @@ def test_packaged_trajectory_is_the_head_of_the_repository_one():
 # ---------------------------------------------------------------- first use: cache folder, compile notice, warmup
 
 
-def _package(root):
-    """A package folder laid out as mjccd's (a subpackage with kernels), for mjccd._cache's folder choice."""
-    pkg = root / "mjccd"
-    (pkg / "mujoco").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
-    (pkg / "mujoco" / "__init__.py").write_text("")
-    return pkg
-
-
-def _read_only(monkeypatch, pkg):
-    """os.access as on a read-only install: nothing under ``pkg`` is writable (root ignores chmod, so patch it)."""
+def _stable_roots(monkeypatch, writable):
+    """mjccd._cache's folder choice with ``writable(folder)`` saying which folders can be written."""
     from mjccd import _cache
 
-    real = os.access
-    monkeypatch.setattr(_cache.os, "access",
-                        lambda path, mode: False if Path(path).is_relative_to(pkg) else real(path, mode))
+    monkeypatch.setattr(_cache, "_writable", writable)
+    return _cache
 
 
-def test_numba_caches_next_to_a_writable_package(tmp_path):
-    from mjccd import _cache
-
-    env = {}
-    assert _cache.cache_dir(env, str(_package(tmp_path))) is None
-    assert _cache.configure(env, str(_package(tmp_path / "again"))) is None and env == {}
-
-
-def test_read_only_package_caches_in_the_user_cache_folder(tmp_path, monkeypatch):
-    from mjccd import _cache
-
-    pkg = _package(tmp_path)
-    _read_only(monkeypatch, pkg)
+def test_kernels_go_to_the_package_then_the_user_then_the_temporary_folder(tmp_path, monkeypatch):
+    pkg = str(tmp_path / "site" / "mjccd")
     env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
-    assert _cache.cache_dir(env, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
+    everywhere = _stable_roots(monkeypatch, lambda folder: True)
+    assert everywhere.kernel_cache_root("abc", env, pkg) == os.path.join(pkg, "__pycache__", "kernels-abc")
+    read_only = _stable_roots(monkeypatch, lambda folder: not folder.startswith(pkg))
+    assert read_only.kernel_cache_root("abc", env, pkg) == str(tmp_path / "xdg" / "mjccd" / "kernels-abc")
     monkeypatch.setenv("HOME", str(tmp_path / "home"))
-    assert _cache.cache_dir({}, str(pkg)) == str(tmp_path / "home" / ".cache" / "mjccd")
-    assert _cache.cache_dir({"XDG_CACHE_HOME": ""}, str(pkg)) == str(tmp_path / "home" / ".cache" / "mjccd")
-    # configure sets NUMBA_CACHE_DIR and makes the folder
-    assert _cache.configure(env, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
-    assert env["NUMBA_CACHE_DIR"] == str(tmp_path / "xdg" / "mjccd") and (tmp_path / "xdg" / "mjccd").is_dir()
+    assert read_only.kernel_cache_root("abc", {}, pkg) == str(tmp_path / "home" / ".cache" / "mjccd" / "kernels-abc")
+    no_home = _stable_roots(monkeypatch, lambda folder: folder.startswith(tempfile.gettempdir()) and
+                            not folder.startswith(str(tmp_path)))
+    assert no_home.kernel_cache_root("abc", env, pkg).startswith(tempfile.gettempdir())
+    nowhere = _stable_roots(monkeypatch, lambda folder: False)
+    assert nowhere.kernel_cache_root("abc", env, pkg) is None
 
 
-def test_read_only_subpackage_is_enough_to_move_the_cache(tmp_path, monkeypatch):
+def test_a_users_numba_cache_dir_holds_the_kernels_and_is_never_changed(tmp_path, monkeypatch):
+    cache = _stable_roots(monkeypatch, lambda folder: True)
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "mine")}
+    root = cache.kernel_cache_root("abc", env, str(tmp_path / "mjccd"))
+    assert root == str(tmp_path / "mine" / "mjccd" / "kernels-abc") and env == {"NUMBA_CACHE_DIR": str(tmp_path / "mine")}
+
+
+def test_importing_mjccd_sets_no_environment_and_hooks_only_its_own_files():
+    code = ("import os; before = dict(os.environ); import mjccd, numba\n"
+            "from numba.core import caching\n"
+            "from mjccd.motion import gamma; gamma(3)\n"
+            "first = caching.CacheImpl._locator_classes[0]\n"
+            "print(dict(os.environ) == before, getattr(first, 'mjccd_kernels', False),"
+            " first.from_function(len, os.__file__) is None, numba.__version__)")
+    out = _run([sys.executable, "-c", code], cwd=ROOT, env=_clean_env()).split()
+    assert out[:3] == ["True", "True", "True"]
+    major, minor = (int(x) for x in out[3].split(".")[:2])
+    assert (major, minor) == (0, 68), "numba changed: check mjccd._cache's hooks, then move pyproject's cap"
+
+
+def test_the_key_covers_every_file_whose_values_kernels_compile_in():
+    """Every compiled function of mjccd, and every module or imported value it reads, comes from a keyed file
+    (a constant read from an unkeyed module would be compiled in and go stale when that module changes)."""
+    import ast
+    import importlib
+    import types
+
     from mjccd import _cache
 
-    pkg = _package(tmp_path)
-    _read_only(monkeypatch, pkg / "mujoco")
-    assert _cache.cache_dir({"XDG_CACHE_HOME": str(tmp_path / "xdg")}, str(pkg)) == str(tmp_path / "xdg" / "mjccd")
+    keyed = set(_cache.kernel_sources())
+    package = Path(_cache.PACKAGE_DIR)
+
+    def names(code):
+        found = set(code.co_names)
+        for const in code.co_consts:
+            if isinstance(const, types.CodeType):
+                found |= names(const)
+        return found
+
+    def keyed_file(module):
+        path = getattr(module, "__file__", None)
+        return path is None or not Path(path).is_relative_to(package) or \
+            str(Path(path).relative_to(package)) in keyed
+
+    problems = []
+    for source in sorted(package.rglob("*.py")):
+        rel = str(source.relative_to(package))
+        if rel.startswith("gpu" + os.sep) or "__pycache__" in rel or rel == "__main__.py":
+            continue  # the GPU modules need a CUDA device or the simulator (tests/test_gpu.py); __main__ runs
+        name = "mjccd." + rel[:-3].replace(os.sep, ".").removesuffix(".__init__")
+        module = importlib.import_module(name.removesuffix(".__init__"))
+        imported = {}
+        for node in ast.parse(source.read_text()).body:
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mjccd"):
+                for alias in node.names:
+                    imported[alias.asname or alias.name] = node.module
+        for value in list(vars(module).values()):
+            func = getattr(value, "py_func", None)
+            if func is None or func.__module__ != module.__name__:
+                continue
+            if rel not in keyed:
+                problems.append(f"{rel}: compiled {func.__name__} in a file the key leaves out")
+            for read in names(func.__code__):
+                got = vars(module).get(read)
+                if isinstance(got, types.ModuleType):
+                    if not keyed_file(got):
+                        problems.append(f"{rel}: {func.__name__} reads module {got.__name__}")
+                elif read in imported and not keyed_file(importlib.import_module(imported[read])) \
+                        and not isinstance(got, type) and getattr(got, "py_func", None) is None:
+                    problems.append(f"{rel}: {func.__name__} reads {read} of {imported[read]}")
+    assert not problems, "\n".join(problems)
 
 
-def test_a_users_numba_cache_dir_is_never_replaced(tmp_path, monkeypatch):
+def _probe_copy(tmp_path):
+    """A copy of the package with two probe kernels: ``motion._probe`` calls ``sorting._probe_value``, in
+    another file."""
+    site = tmp_path / "site"
+    shutil.copytree(ROOT / "mjccd", site / "mjccd", ignore=shutil.ignore_patterns("__pycache__"))
+    with open(site / "mjccd" / "sorting.py", "a") as fh:
+        fh.write("\n\n@numba.njit(cache=True)\ndef _probe_value():\n    return 1.0\n")
+    with open(site / "mjccd" / "motion.py", "a") as fh:
+        fh.write("\n\nfrom mjccd import sorting as _sorting\n\n\n"
+                 "@numba.njit(cache=True)\ndef _probe():\n    return _sorting._probe_value() + 0.5\n")
+    return site
+
+
+def _probe(site, extra=""):
+    env = {**_clean_env(), "PYTHONPATH": str(site)}
+    env.pop("NUMBA_CACHE_DIR", None)
+    code = extra + "import mjccd.motion as m; print(m._probe())"
+    done = subprocess.run([sys.executable, "-W", "always::RuntimeWarning", "-c", code], cwd=site, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    return float(done.stdout.split()[-1]), done.stderr
+
+
+def test_a_callee_edited_in_another_file_is_compiled_afresh(tmp_path):
+    site = _probe_copy(tmp_path)
+    assert _probe(site)[0] == 1.5
+    caches = list((site / "mjccd" / "__pycache__").glob("kernels-*"))
+    assert len(caches) == 1 and list(caches[0].rglob("motion._probe-*.nbi"))
+    assert _probe(site)[0] == 1.5  # loaded from the cache
+    sorting = site / "mjccd" / "sorting.py"
+    sorting.write_text(sorting.read_text().replace("    return 1.0\n", "    return 2.0\n"))
+    assert _probe(site)[0] == 2.5  # numba's own cache would load motion._probe's old code: 1.5
+    assert [p.name for p in (site / "mjccd" / "__pycache__").glob("kernels-*")] != [caches[0].name]
+    assert len(list((site / "mjccd" / "__pycache__").glob("kernels-*"))) == 1  # the old key's folder is gone
+
+
+def test_an_upgrade_changes_the_key_and_an_unkeyed_edit_does_not(tmp_path):
     from mjccd import _cache
 
-    pkg = _package(tmp_path)
-    _read_only(monkeypatch, pkg)
-    env = {"NUMBA_CACHE_DIR": str(tmp_path / "mine"), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
-    assert _cache.cache_dir(env, str(pkg)) is None
-    assert _cache.configure(env, str(pkg)) is None
-    assert env["NUMBA_CACHE_DIR"] == str(tmp_path / "mine") and not (tmp_path / "xdg").exists()
+    copy = tmp_path / "mjccd"
+    shutil.copytree(ROOT / "mjccd", copy, ignore=shutil.ignore_patterns("__pycache__"))
+    key = _cache.kernel_key(str(copy))
+    assert key == _cache.kernel_key() and "replay.py" not in _cache.kernel_sources(str(copy))
+    (copy / "replay.py").write_text((copy / "replay.py").read_text() + "\n# an edit of replay, no kernel\n")
+    assert _cache.kernel_key(str(copy)) == key
+    init = copy / "__init__.py"
+    init.write_text(init.read_text().replace('__version__ = "', '__version__ = "9'))  # the next wheel
+    assert _cache.kernel_key(str(copy)) != key
 
 
-def test_an_unusable_user_cache_folder_leaves_numba_its_own_fallback(tmp_path, monkeypatch):
-    from mjccd import _cache
-
-    pkg = _package(tmp_path)
-    _read_only(monkeypatch, pkg)
-    (tmp_path / "xdg").write_text("a file where the cache folder would go")
-    env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}
-    assert _cache.configure(env, str(pkg)) is None and "NUMBA_CACHE_DIR" not in env
+def test_a_corrupt_or_unwritable_cache_compiles_with_one_warning(tmp_path):
+    site = _probe_copy(tmp_path)
+    assert _probe(site)[0] == 1.5
+    for index in (site / "mjccd" / "__pycache__").rglob("*.nbi"):
+        index.write_bytes(b"not a pickle")
+    value, err = _probe(site)
+    assert value == 1.5 and err.count("KernelCacheWarning") == 1 and "compiling the kernels instead" in err
+    full = ("import errno, numba.core.caching as c\n"
+            "def _full(*args): raise OSError(errno.ENOSPC, 'No space left on device')\n"
+            "c.IndexDataCacheFile.save = _full\n")
+    shutil.rmtree(next((site / "mjccd" / "__pycache__").glob("kernels-*")))
+    value, err = _probe(site, full)
+    assert value == 1.5 and err.count("KernelCacheWarning") == 1 and "No space left" in err
 
 
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root writes into read-only folders")
-def test_importing_a_read_only_copy_sets_the_user_cache_folder(tmp_path):
+def test_a_read_only_install_with_no_writable_home_imports_and_runs(tmp_path):
     copy = tmp_path / "site"
-    shutil.copytree(ROOT / "mjccd", copy / "mjccd", ignore=shutil.ignore_patterns("__pycache__", "*.nb[ic]"))
+    shutil.copytree(ROOT / "mjccd", copy / "mjccd", ignore=shutil.ignore_patterns("__pycache__"))
     for folder in sorted((p for p in copy.rglob("*") if p.is_dir()), reverse=True) + [copy]:
         folder.chmod(0o555)
     try:
-        env = {**_clean_env(), "PYTHONPATH": str(copy), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+        env = {**_clean_env(), "PYTHONPATH": str(copy), "HOME": str(copy), "XDG_CACHE_HOME": str(copy / "x")}
         env.pop("NUMBA_CACHE_DIR", None)
-        out = _run([sys.executable, "-c", "import mjccd, os; print(os.environ.get('NUMBA_CACHE_DIR'))"],
+        out = _run([sys.executable, "-c", "import mjccd; from mjccd.motion import gamma; print(gamma(3) > 0)"],
                    cwd=tmp_path, env=env).strip()
     finally:
         for folder in [copy, *copy.rglob("*")]:
             if folder.is_dir():
                 folder.chmod(0o755)
-    assert out == str(tmp_path / "xdg" / "mjccd")
+    assert out.splitlines()[-1] == "True"
 
 
 class _Event:

@@ -5,7 +5,6 @@ each batch's part as soon as it is done; no engine schedules anything itself.  L
 error, Ctrl-C) cancels the batches not yet started.
 """
 import multiprocessing
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from mjccd.collection.checks import check_clips
 from mjccd.errors import InputError
@@ -19,18 +18,24 @@ def in_process(batches, options):
         yield (batch, *check_clips(batch, options))
 
 
+def _check_batch(work):
+    """One batch in a pool worker: ``(batch, contacts, clips)``."""
+    batch, options = work
+    return (batch, *check_clips(batch, options))
+
+
 def process_pool(batches, options, workers):
-    """The batches on ``workers`` local processes (started fresh: ``spawn``, safe with numba's threads)."""
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
-    pending = {pool.submit(check_clips, batch, options): batch for batch in batches}
+    """The batches on ``workers`` local processes (started fresh: ``spawn``, safe with numba's threads); the
+    workers are stopped at once when the caller stops early (Ctrl-C, an error)."""
+    pool = multiprocessing.get_context("spawn").Pool(workers)
     try:
-        while pending:
-            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                batch = pending.pop(future)
-                yield (batch, *future.result())
+        yield from pool.imap_unordered(_check_batch, [(batch, options) for batch in batches])
+        pool.close()
+    except BaseException:
+        pool.terminate()
+        raise
     finally:
-        pool.shutdown(wait=not pending, cancel_futures=True)
+        pool.join()
 
 
 def ray_tasks(batches, options, workers, address=None):

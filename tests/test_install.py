@@ -204,7 +204,8 @@ def test_importing_mjccd_sets_no_environment_and_hooks_only_its_own_files():
     out = _run([sys.executable, "-c", code], cwd=ROOT, env=_clean_env()).split()
     assert out[:3] == ["True", "True", "True"]
     major, minor = (int(x) for x in out[3].split(".")[:2])
-    assert (major, minor) == (0, 68), "numba changed: check mjccd._cache's hooks, then move pyproject's cap"
+    assert (major, minor) == (0, 68), ("numba changed: check the numba internals mjccd relies on (mjccd._cache's "
+                                       "hooks, mjccd.scene.WorkspaceRef), then move pyproject's cap")
 
 
 def test_the_key_covers_every_file_whose_values_kernels_compile_in():

@@ -66,8 +66,9 @@ class ScanOptions:
             raise InputError(f"planes: expected one of {', '.join(PLANE_RULES)}, got {self.planes!r}")
         for name in ("self_overlap_s", "floor_depth_m", "jump_deg", "bvh_scale"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise InputError(f"{name}: expected a finite number >= 0, got {value!r}")
+            low = 0.0 if name != "bvh_scale" else math.ulp(0.0)  # a scale must be positive
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= low):
+                raise InputError(f"{name}: expected a finite number {'>=' if low == 0 else '>'} 0, got {value!r}")
         return self
 
     def settings(self):

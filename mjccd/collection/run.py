@@ -59,11 +59,11 @@ def scan(sources, out, *, model=None, workers=None, engine="pool", address=None,
     """
     from mjccd import __version__
 
-    unknown = set(options) - set(ScanOptions.__dataclass_fields__) - {"model"}
+    unknown = set(options) - set(ScanOptions.__dataclass_fields__)
     if unknown:
         raise InputError(f"scan: unknown option {sorted(unknown)[0]!r}")
     options = ScanOptions(model=None if model is None else os.fspath(model), **options).check()
-    workers = os.cpu_count() or 1 if workers is None else workers
+    workers = (os.cpu_count() or 1) if workers is None else workers
     if not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers: expected a positive integer, got {workers!r}")
     check_engine(engine, address)

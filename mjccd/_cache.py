@@ -18,8 +18,8 @@ numba's own cache rules, and no environment variable is set.
 *How.*  Two narrow hooks into ``numba.core.caching`` (numba is capped below its next minor version in
 pyproject.toml, and tests/test_install.py fails on another): ``KernelLocator`` goes first in numba's list
 of cache locators and answers for mjccd's source files only, and a cache of mjccd's that cannot be read or
-written (a corrupt index, a full disk) is skipped with one :class:`KernelCacheWarning`: the kernel is compiled
-instead, never an error blamed on the user's input.
+written (a corrupt index, a full disk) is removed, with one :class:`KernelCacheWarning`: the kernel is compiled
+instead and the folder rebuilt by the next saves, never an error blamed on the user's input.
 
 *Notice.*  Compiling is the slow part of first use (one to two minutes of CPU for the demo's replay on 2 cores,
 see docs/benchmarks.md, "First use"): while mjccd's kernels compile (not when they load from the cache)
@@ -194,11 +194,12 @@ def install_hooks():
         try:
             yield
         except Exception as exc:  # noqa: BLE001 -- an unusable cache file is a compile, never a failure
+            shutil.rmtree(self._cache_path, ignore_errors=True)  # rebuilt by the next saves
             if not _WARNED:
                 _WARNED.append(exc)
                 warnings.warn(f"mjccd: the kernel cache in {self._cache_path} cannot be used "
-                              f"({type(exc).__name__}: {exc}); compiling the kernels instead", KernelCacheWarning,
-                              stacklevel=2)
+                              f"({type(exc).__name__}: {exc}); compiling the kernels instead and rebuilding it",
+                              KernelCacheWarning, stacklevel=2)
 
     caching.CacheImpl._locator_classes.insert(0, KernelLocator)
     caching.Cache._guard_against_spurious_io_errors = guarded

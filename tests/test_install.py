@@ -318,6 +318,7 @@ def test_a_corrupt_or_unwritable_cache_compiles_with_one_warning(tmp_path):
         index.write_bytes(b"not a pickle")
     value, err = _probe(site)
     assert value == 1.5 and err.count("KernelCacheWarning") == 1 and "compiling the kernels instead" in err
+    assert _probe(site) == (1.5, "")  # rebuilt: loads again, no warning
     full = ("import errno, numba.core.caching as c\n"
             "def _full(*args): raise OSError(errno.ENOSPC, 'No space left on device')\n"
             "c.IndexDataCacheFile.save = _full\n")

@@ -43,3 +43,15 @@ def test_plot_example_2_2_runs(tmp_path, capsys):
     _main("plot_example_2_2.py")(tmp_path / "example.png")
     assert (tmp_path / "example.png").read_bytes()[:4] == b"\x89PNG"
     assert "first contact at t = 0.5" in capsys.readouterr().out
+
+
+def test_scan_collection_runs(tmp_path, capsys):
+    """The collection example: a damaged file is named, the two jumping clips are flagged, the plot is written,
+    and a second run scans nothing again."""
+    assert _main("scan_collection.py")([str(tmp_path), "--clips", "6", "--workers", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "6 clips in" in out and "could not be scanned" in out and out.count(": jump") == 2
+    assert (tmp_path / "contacts_per_clip.png").read_bytes()[:4] == b"\x89PNG"
+    parts = sorted((tmp_path / "scan" / "clips.parquet").iterdir())
+    assert _main("scan_collection.py")([str(tmp_path), "--clips", "6", "--workers", "1"]) == 0
+    assert sorted((tmp_path / "scan" / "clips.parquet").iterdir()) == parts

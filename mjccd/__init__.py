@@ -1,5 +1,5 @@
 """mjccd: exact continuous collision detection for ellipsoid-bounded MuJoCo bodies."""
-from mjccd import _cache  # noqa: F401  (first: numba's cache folder before numba loads; compile notice)
+from mjccd import _cache  # noqa: F401  (first: the kernels' keyed cache before any kernel is defined; compile notice)
 from mjccd.cases import solve_cases
 from mjccd.ccd import Contact, collision_intervals, first_contact
 from mjccd.motion import (Affine, Ball, Chain, Fixed, Free, Hinge, LinearAffine, Motion, Rational,

@@ -54,7 +54,7 @@ from mjccd.mujoco import adapter
 from mjccd.mujoco.adapter import ModelAdapter
 from mjccd.mujoco.geoms import GeomChecker
 from mjccd.mujoco.monitor import check_mode
-from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, geom_ellipsoids, geom_label
+from mjccd.mujoco.ellipsoids import EllipsoidSet, body_label, geom_ellipsoids, geom_id, geom_label
 from mjccd.mujoco.motions import State, as_state
 from mjccd.mujoco.pairs import PAIR_RULES, every_plane_pair, pairs_with_reason, plane_pairs
 from mjccd.mujoco.warnings import CoverageWarning
@@ -1347,8 +1347,7 @@ def render_frames(model, highlights, folder, bounds=True):
         for contact, qpos0, qpos1 in highlights:
             model.geom_rgba[:] = rgba
             for name in contact.get("geoms", contact.get("ellipsoids", ())):
-                g = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name) if not name.startswith("#") else \
-                    int(name[1:])
+                g = geom_id(model, name)
                 if g >= 0 and model.geom_type[g] != mujoco.mjtGeom.mjGEOM_PLANE:
                     model.geom_rgba[g] = (0.9, 0.1, 0.1, 0.8)
             data.qpos[:] = qpos1 if contact["toi"] > 0.5 else qpos0

@@ -31,14 +31,14 @@ import warnings
 import mujoco
 import numpy as np
 
-from mjccd import bvh
 from mjccd.bench import options
 from mjccd.bench.collection import collection_frames, tile_collection
 from mjccd.bench.report import write_section
 from mjccd.collection import scan
-from mjccd.collection.checks import RestPose
+from mjccd.collection.checks import RestPose, ScanOptions, replayed
+from mjccd.collection.clips import ClipTask
 from mjccd.mujoco.warnings import CoverageWarning
-from mjccd.replay import Trajectory, replay_trajectory
+from mjccd.mujoco.ellipsoids import geom_id
 from mjccd._command import PlainHelpFormatter
 
 QUICK = {"clips": 8, "frames": 240, "repeats": 1, "miss_clips": 4}
@@ -57,21 +57,15 @@ def time_engine(folder, runs, **kwargs):
     return seconds, tables
 
 
-def _geom(model, label):
-    """A geom's id from its label (its name, or ``#id``)."""
-    return int(label[1:]) if label.startswith("#") else mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, label)
-
-
 def miss_counts(path):
     """The per-frame check against the scan's continuous answer on one clip (module docstring): counts by kind."""
-    xml, qpos, times, _ = bvh.import_bvh(path, bounds=True)
-    model = mujoco.MjModel.from_xml_string(xml)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CoverageWarning)
-        result = replay_trajectory(model, Trajectory(path, model, arrays=(qpos, times)))
+        model, trajectory, result = replayed(ClipTask(path, "bvh", ""), ScanOptions())
+    qpos = trajectory.qpos()
     data = mujoco.MjData(model)
     fromto = np.zeros(6)
-    pairs = [tuple(_geom(model, name) for name in result.names(p)[0]) for p in range(len(result.pairs))]
+    pairs = [tuple(geom_id(model, name) for name in result.names(p)[0]) for p in range(len(result.pairs))]
     touching = np.zeros((len(qpos), len(pairs)), dtype=bool)  # every checked pair on every frame
     for k, q in enumerate(qpos):
         data.qpos[:] = q

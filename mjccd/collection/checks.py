@@ -22,7 +22,8 @@ import mujoco
 import numpy as np
 
 from mjccd import bvh
-from mjccd.errors import MjccdError
+from mjccd.errors import InputError, MjccdError
+from mjccd.mujoco.ellipsoids import geom_id
 from mjccd.mujoco.geoms import real_geoms
 from mjccd.mujoco.warnings import CoverageWarning
 from mjccd.replay import MOTIONS, PLANE_RULES, Trajectory, load_model, replay_trajectory
@@ -56,8 +57,6 @@ class ScanOptions:
 
     def check(self):
         """Refuse a bad option with a :class:`~mjccd.errors.InputError` naming it."""
-        from mjccd.errors import InputError
-
         if self.motion not in MOTIONS:
             raise InputError(f"motion: expected one of {', '.join(MOTIONS)}, got {self.motion!r}")
         if self.mode not in (None, "geoms", "ellipsoids"):
@@ -119,8 +118,9 @@ def _error_text(exc):
     return f"{type(exc).__name__}: {exc} ({where.filename.rsplit('/', 1)[-1]}:{where.lineno})"
 
 
-def _check_clip(task, options):
-    """The contact rows and the clips-row values of one clip (module docstring)."""
+def replayed(task, options):
+    """``(model, trajectory, result)``: one clip's model (a BVH clip's own skeleton, else ``options.model``), its
+    opened :class:`~mjccd.replay.Trajectory` and its :class:`~mjccd.replay.ReplayResult`."""
     if task.format == "bvh":
         xml, qpos, time, _ = bvh.import_bvh(task.path, scale=options.bvh_scale, bounds=True)
         model = mujoco.MjModel.from_xml_string(xml)
@@ -134,6 +134,12 @@ def _check_clip(task, options):
         source = options.model
     result = replay_trajectory(model, trajectory, options.motion, source=source, planes=options.planes,
                                mode=options.mode)
+    return model, trajectory, result
+
+
+def _check_clip(task, options):
+    """The contact rows and the clips-row values of one clip (module docstring)."""
+    model, trajectory, result = replayed(task, options)
     rows = contact_rows(result, task)
     times = trajectory.times()
     qpos = trajectory.qpos()
@@ -175,15 +181,11 @@ class RestPose:
         self.data = mujoco.MjData(model)
         mujoco.mj_kinematics(model, self.data)
 
-    def _geom(self, label):
-        if label.startswith("#"):
-            return int(label[1:])
-        return mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, label)
-
     def overlapping(self, a, b):
         """Whether geoms ``a`` and ``b`` (labels) touch or overlap in the reference pose (MuJoCo's distance)."""
         fromto = np.zeros(6)
-        return mujoco.mj_geomDistance(self.model, self.data, self._geom(a), self._geom(b), 1.0, fromto) <= 0.0
+        return mujoco.mj_geomDistance(self.model, self.data, geom_id(self.model, a), geom_id(self.model, b), 1.0,
+                                      fromto) <= 0.0
 
 
 def _plane_parts(result):

@@ -69,15 +69,15 @@ def find_clips(sources):
     return sorted(found)
 
 
-def options_digest(options, model_digest, version):
-    """The hash of what every clip's answers depend on besides its own bytes."""
-    text = json.dumps({"options": options, "model": model_digest, "version": version}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
+def settings_digest(settings):
+    """The hash of what every clip's answers depend on besides its own bytes: the scan's settings (options,
+    model digest, version), as its folder's ``scan.json`` records them."""
+    return hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()
 
 
 def clip_tasks(paths, common):
     """``(tasks, repeats)``: a :class:`ClipTask` per path, keyed by its bytes and ``common`` (the
-    :func:`options_digest`), and the paths left out because an earlier one has the same bytes."""
+    :func:`settings_digest`), and the paths left out because an earlier one has the same bytes."""
     tasks, seen, repeats = [], set(), []
     for path in paths:
         key = hashlib.sha256((file_digest(path) + common).encode()).hexdigest()[:32]

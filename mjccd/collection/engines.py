@@ -82,8 +82,8 @@ def check_engine(engine, address=None):
 
 
 def run_batches(batches, options, *, engine="pool", workers=1, address=None):
-    """The engine's generator for ``batches`` (lists of :class:`~mjccd.collection.clips.ClipTask`)."""
-    check_engine(engine, address)
+    """The engine's generator for ``batches`` (lists of :class:`~mjccd.collection.clips.ClipTask`); ``engine`` and
+    ``address`` as :func:`check_engine` passed them."""
     if engine == "ray":
         return ray_tasks(batches, options, workers, address)
     return in_process(batches, options) if workers == 1 else process_pool(batches, options, workers)

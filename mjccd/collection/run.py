@@ -5,7 +5,7 @@ import sys
 from dataclasses import dataclass, field
 
 from mjccd.collection.checks import ScanOptions
-from mjccd.collection.clips import clip_tasks, file_digest, find_clips, options_digest
+from mjccd.collection.clips import clip_tasks, file_digest, find_clips, settings_digest
 from mjccd.collection.engines import check_engine, run_batches
 from mjccd.collection.tables import ScanFolder, read_tables
 from mjccd.errors import InputError
@@ -72,7 +72,7 @@ def scan(sources, out, *, model=None, workers=None, engine="pool", address=None,
         raise InputError("model: the .npz clips are qpos of a model; name it (--model MODEL.xml)")
     settings = {"version": __version__, "model_sha256": None if model is None else file_digest(options.model),
                 **options.settings()}
-    tasks, repeats = clip_tasks(paths, options_digest(options.settings(), settings["model_sha256"], __version__))
+    tasks, repeats = clip_tasks(paths, settings_digest(settings))
     report = ScanReport() if report is None else report
     report.found, report.repeats = len(paths), repeats
     with ScanFolder(out, settings) as folder:

@@ -141,7 +141,8 @@ def read_tables(folder, *, pandas=False):
             raise InputError("pandas=True needs pandas, which is not installed: pip install pandas") from None
     folder = Path(folder)
     out = []
-    for sub, schema, order in ((CONTACTS, schemas()[0], CONTACT_ORDER), (CLIPS, schemas()[1], CLIP_ORDER)):
+    contact_schema, clip_schema = schemas()
+    for sub, schema, order in ((CONTACTS, contact_schema, CONTACT_ORDER), (CLIPS, clip_schema, CLIP_ORDER)):
         path = folder / sub
         if not path.is_dir():
             raise InputError(f"{path}: no such dataset; is {folder} a scan's folder?")

@@ -316,6 +316,13 @@ def _is_bound(model, g):
             and not (model.geom_contype[g] | model.geom_conaffinity[g]))
 
 
+def geom_id(model, label):
+    """The id of the geom :func:`geom_label` calls ``label`` (its name, or ``#id``), -1 when the model has none."""
+    if label.startswith("#") and label[1:].isdigit():
+        return int(label[1:]) if int(label[1:]) < model.ngeom else -1
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, label)
+
+
 def geom_label(model, geom_id):
     """A geom's name, or ``#id`` for an unnamed geom (as ``fit_model(per="geom")`` names it)."""
     return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(geom_id)) or f"#{int(geom_id)}"

@@ -31,7 +31,7 @@ import numpy as np
 from mjccd.errors import InputError, InputTypeError
 from mjccd.quadric import static_status_code
 from mjccd.mujoco.chains import body_path
-from mjccd.mujoco.ellipsoids import SUPPORTED, body_label, geom_label
+from mjccd.mujoco.ellipsoids import SUPPORTED, body_label, geom_id, geom_label
 from mjccd.mujoco.motions import Kinematics, State
 from mjccd.mujoco.warnings import CoverageWarning
 
@@ -70,13 +70,6 @@ def explicit_geom_pairs(model):
     return {_pair_key(int(g1), int(g2)) for g1, g2 in zip(model.pair_geom1, model.pair_geom2)}
 
 
-def _geom_id(model, name):
-    """The id of the geom called ``name`` (``#id`` for an unnamed one), -1 when the model has none."""
-    if name.startswith("#") and name[1:].isdigit():
-        return int(name[1:]) if int(name[1:]) < model.ngeom else -1
-    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
-
-
 def bounded_geoms(model, ellipsoids, body_ids=None):
     """The geoms each ellipsoid stands for in MuJoCo's rules: a list of N int arrays of geom ids.
 
@@ -90,7 +83,7 @@ def bounded_geoms(model, ellipsoids, body_ids=None):
     in_pairs = {int(g) for g in np.concatenate([model.pair_geom1, model.pair_geom2])}
     out = []
     for name, body in zip(ellipsoids.geoms, ids):
-        g = _geom_id(model, name) if name else -1
+        g = geom_id(model, name) if name else -1
         if g >= 0 and model.geom_bodyid[g] == body and (
                 model.geom_contype[g] or model.geom_conaffinity[g] or g in in_pairs):
             out.append(np.array([g], dtype=np.int64))

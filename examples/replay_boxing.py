@@ -2,7 +2,7 @@
 
     python examples/replay_boxing.py [OUT_DIR]
 
-Uses models/boxing.xml (two CMU boxers, 21 bounding ellipsoids each) and
+Uses models/boxing.xml (two CMU boxers, bounded by 46 and 48 ellipsoids) and
 data/boxing_traj.npz (1,199 frames at 120 Hz from CMU clips 13_18 and 14_03).
 """
 import os

@@ -26,7 +26,7 @@ import numpy as np
 
 from mjccd import _command, files
 from mjccd.errors import InputError, MjccdError
-from mjccd.fitting import ball, fit_atoms
+from mjccd.fitting import DEFAULT_TOLERANCE, Shape, ball, cover_loosened, fit_atoms, within_tolerance
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
 from mjccd._command import PlainHelpFormatter
 
@@ -545,28 +545,65 @@ def fit_capsules(capsules):
     return radii * (1.0 + 1e-9), centre, matrix_to_quat(rotation)
 
 
-_BOUNDS = {}  # hierarchy and layout -> bounding_geoms' lines (the clips of one skeleton share their bounds)
+def capsule_shape(p0, p1, radius):
+    """The capsule from ``p0`` to ``p1`` as a :class:`mjccd.fitting.Shape` (its axis along the local z)."""
+    axis = np.asarray(p1, dtype=float) - np.asarray(p0, dtype=float)
+    length = float(np.linalg.norm(axis))
+    centre = (np.asarray(p0, dtype=float) + np.asarray(p1, dtype=float)) / 2
+    if length == 0.0:
+        return Shape("sphere", np.array([radius, 0.0, 0.0]), centre, np.eye(3))
+    z = axis / length
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    return Shape("capsule", np.array([radius, length / 2, 0.0]), centre, np.c_[x, np.cross(z, x), z])
 
 
-def bounding_geoms(clip, layout):
-    """MJCF lines of one bounding ellipsoid per rigid part, keyed by the joint whose body holds it.
+def fit_part(capsules, tolerance=DEFAULT_TOLERANCE):
+    """Bounding ellipsoids ``[(radii, centre, quaternion), ...]`` of one rigid part's capsules ``(p0, p1, r)``.
+
+    As :func:`mjccd.mujoco.fit_model` fits a body: one ellipsoid
+    (:func:`fit_capsules`) when it is proven within ``tolerance`` of the
+    capsules, else each capsule covered within it
+    (:func:`mjccd.fitting.cover_loosened`; containment proven either way).
+    ``tolerance=None``: the one ellipsoid, however loose.  The radii get a
+    margin of 1e-9 for the 12 digits the MJCF is written with.
+    """
+    one = fit_capsules(capsules)
+    if tolerance is None:
+        return [one]
+    shapes = [capsule_shape(*c) for c in capsules]
+    radii, centre, quat = one
+    if within_tolerance(centre, quat_to_matrix(quat), radii, shapes, tolerance):
+        return [one]
+    return [(r * (1.0 + 1e-9), c, matrix_to_quat(R))
+            for shape in shapes for c, R, r in cover_loosened(shape, tolerance)[0]]
+
+
+_BOUNDS = {}  # hierarchy, layout and tolerance -> bounding_geoms' lines (one skeleton's clips share their bounds)
+
+
+def bounding_geoms(clip, layout, tolerance=DEFAULT_TOLERANCE):
+    """MJCF lines of each rigid part's bounding ellipsoids (:func:`fit_part`), keyed by the joint whose body
+    holds them: ``NAME_bound`` for a part's one ellipsoid, ``NAME_1_bound``, ``NAME_2_bound``, ... for several.
 
     With no frozen joint the parts depend only on the hierarchy (names, offsets, end sites, channels) and the
     layout, so the fits are kept for the next clip of the same skeleton in this process.
     """
     key = None
     if not layout.frozen:
-        key = (layout, tuple((j.name, j.parent, tuple(j.offset.tolist()), tuple(j.channels),
-                              tuple(tuple(e.tolist()) for e in j.end_sites)) for j in clip.joints))
+        key = (layout, tolerance, tuple((j.name, j.parent, tuple(j.offset.tolist()), tuple(j.channels),
+                                         tuple(tuple(e.tolist()) for e in j.end_sites)) for j in clip.joints))
         if key in _BOUNDS:
             return _BOUNDS[key]
     extra = {}
     names = mjcf_names(clip)
     for index, caps in rigid_groups(clip, layout).items():
-        radii, centre, quat = fit_capsules(caps)
-        name = layout.prefix + names[index]
+        fitted = fit_part(caps, tolerance)
+        base = layout.prefix + names[index]
         extra[clip.joints[index].name] = [
-            f'<geom name="{name}_bound" class="bound" size="{_fmt(radii)}" pos="{_fmt(centre)}" quat="{_fmt(quat)}"/>']
+            f'<geom name="{base if len(fitted) == 1 else f"{base}_{k + 1}"}_bound" class="bound" '
+            f'size="{_fmt(radii)}" pos="{_fmt(centre)}" quat="{_fmt(quat)}"/>'
+            for k, (radii, centre, quat) in enumerate(fitted)]
     if key is not None:
         _BOUNDS[key] = extra
     return extra
@@ -611,8 +648,8 @@ def model_xml(characters, *, model_name="bvh", floor=True, extra_worldbody=()):
 def import_bvh(path, *, scale=CMU_SCALE, prefix="", start=0, frozen=(), bounds=False):
     """Read a BVH file; return ``(xml, qpos (T, nq), time (T), clip)`` for one character.
 
-    ``bounds``: give each rigid part its bounding ellipsoid (:func:`bounding_geoms`, in the bounds' group), as
-    replay needs to choose the pairs of a model.
+    ``bounds``: give each rigid part its bounding ellipsoids (:func:`bounding_geoms`, the default fit within
+    1 cm, in the bounds' group), as replay needs to choose the pairs of a model.
 
     The model is compiled by MuJoCo before it is returned (see
     :func:`check_model`), so a clip that cannot become a working model is

@@ -504,6 +504,8 @@ adds pairs to check at every step.  Lengths are in the model's unit: 0.01 is
 1 cm in a model written in metres."""
 MAX_ELLIPSOIDS = 64
 """A shape that needs more ellipsoids than this at the asked tolerance is refused (:func:`cover_shape`)."""
+LOOSENINGS = 12
+""":func:`cover_loosened` tries a shape that needs too many ellipsoids within 2, 4, ... 4096 times the tolerance."""
 _DESIGN = 1.0 - 1e-9  # covers aim at this share of the tolerance: growing to proven containment stays inside it
 _STRETCHES = (1.0, 2.0, 4.0)  # how far a mesh piece's ellipsoid may reach along the axes it was cut on
 _GROWTHS = (1.0, 1.6, 2.5, 4.0)  # how mesh grid cells may grow from the ends of an axis to its middle
@@ -585,6 +587,19 @@ def cover_shape(shape, tolerance, *, max_ellipsoids=MAX_ELLIPSOIDS):
         raise TooManyEllipsoids(f"tolerance: this {shape.kind} needs more than {int(max_ellipsoids)} ellipsoids to "
                                 f"stay within {t:g} of it; raise the tolerance or max_ellipsoids")
     return cover
+
+
+def cover_loosened(shape, tolerance, *, max_ellipsoids=MAX_ELLIPSOIDS):
+    """``(cover, used)``: :func:`cover_shape` within ``tolerance``, or, when that needs more than
+    ``max_ellipsoids``, within the least of 2, 4, ... 2 ** :data:`LOOSENINGS` times it that needs no more
+    (``used``, for the caller to say so).  Raises :class:`TooManyEllipsoids` when none is enough."""
+    used = tolerance
+    for _ in range(LOOSENINGS + 1):
+        try:
+            return cover_shape(shape, used, max_ellipsoids=max_ellipsoids), used
+        except TooManyEllipsoids:
+            used *= 2.0
+    raise TooManyEllipsoids(f"needs more than {max_ellipsoids} ellipsoids even within {used / 2:g} of it")
 
 
 def _contain(ellipsoid, atoms, margin=0.0):

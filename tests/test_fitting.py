@@ -337,16 +337,34 @@ def test_bvh_parts_are_contained_in_their_ellipsoids():
     assert any(len(capsules) > 1 for capsules in groups.values())
     for joint, capsules in groups.items():
         radii, centre, quat = bvh.fit_capsules(capsules)
-        points = []
-        for p0, p1, r in capsules:
-            axis = p1 - p0
-            z = axis / np.linalg.norm(axis)
-            x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-            frame = np.c_[x / np.linalg.norm(x), np.cross(z, x / np.linalg.norm(x)), z]
-            capsule = Shape("capsule", np.array([r, np.linalg.norm(axis) / 2, 0.0]), (p0 + p1) / 2, frame)
-            points.append(_surface(capsule, rng, 500))
-        reach = _radius(centre, quat_to_matrix(quat), radii, np.vstack(points))
+        points = np.vstack([_surface(bvh.capsule_shape(*c), rng, 500) for c in capsules])
+        reach = _radius(centre, quat_to_matrix(quat), radii, points)
         assert 0.97 <= reach.max() <= 1.0, clip.joints[joint].name
+
+
+def test_bvh_parts_are_bounded_within_the_default_tolerance():
+    """``bvh.fit_part`` (the bounds of models/boxing.xml and of BVH imports): every point of a part's capsules lies
+    in one of its ellipsoids, and no point of an ellipsoid lies farther than 1 cm from the capsules (sampled)."""
+    rng = np.random.default_rng(5)
+    clip = bvh.read_bvh(CLIPS / "cmu_13_18_boxing_first10s.bvh")
+    frozen = frozenset("LHipJoint RHipJoint LeftShoulder RightShoulder LeftFingerBase LeftHandIndex1 LThumb "
+                       "RightFingerBase RightHandIndex1 RThumb".split())
+    groups = bvh.rigid_groups(clip, bvh.Layout("", bvh.CMU_SCALE, bvh.Placement(), frozen, 1))
+    counts = []
+    for joint, capsules in groups.items():
+        fitted = bvh.fit_part(capsules)
+        assert len(bvh.fit_part(capsules, None)) == 1
+        counts.append(len(fitted))
+        shapes = [bvh.capsule_shape(*c) for c in capsules]
+        points = np.vstack([_surface(shape, rng, 400) for shape in shapes])
+        reach = np.min([_radius(c, quat_to_matrix(q), r, points) for r, c, q in fitted], axis=0)
+        assert reach.max() <= 1.0, clip.joints[joint].name
+        for radii, centre, quat in fitted:
+            sphere = rng.normal(size=(400, 3))
+            outer = centre + (sphere / np.linalg.norm(sphere, axis=1, keepdims=True) * radii) @ quat_to_matrix(quat).T
+            gap = np.min([shape.distance(outer) for shape in shapes], axis=0)
+            assert gap.max() <= DEFAULT_TOLERANCE * (1.0 + 1e-6), clip.joints[joint].name
+    assert max(counts) > 1 and min(counts) == 1  # long parts take several ellipsoids, short ones one
 
 
 # ---------------------------------------------------------------- covers to a tolerance

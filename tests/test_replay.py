@@ -16,6 +16,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 MODEL = ROOT / "models" / "boxing.xml"
 TRAJ = ROOT / "data" / "boxing_traj.npz"
 FIRST, LAST = 136, 150   # frames of the bundled trajectory around the first glove contacts
+ELLIPSOIDS, PAIRS = 94, 46 * 48  # the bounds of models/boxing.xml: the default fit within 1 cm
 
 
 @pytest.fixture(scope="module")
@@ -105,8 +106,9 @@ def test_scene_layout():
     model = replay.load_model(MODEL)
     ellipsoids, pairs = replay.replay_ellipsoids(model)
     names = ellipsoids.geoms
-    assert len(names) == 42
-    assert len(pairs) == 21 * 21      # boxer against boxer only
+    per_boxer = [sum(n.startswith(p) for n in names) for p in ("a_", "b_")]
+    assert per_boxer == [46, 48]      # the default fit within 1 cm (models/build_boxing.py), 21 parts each
+    assert len(pairs) == 46 * 48      # boxer against boxer only
     assert all(names[i].startswith("a_") and names[j].startswith("b_") for i, j in pairs)
 
 
@@ -115,19 +117,19 @@ def test_end_to_end(result):
     assert res.n_frames == LAST - FIRST
     assert len(res.contacts) >= 3
     doc = json.loads((out / "contacts.json").read_text())
-    assert doc["frames"] == LAST - FIRST and doc["pairs"] == 441
+    assert doc["frames"] == LAST - FIRST and doc["pairs"] == PAIRS
     assert len(doc["first_contacts"]) == len(res.contacts)
-    assert doc["counters"]["pairs"] == 441 * (LAST - FIRST - 1)
+    assert doc["counters"]["pairs"] == PAIRS * (LAST - FIRST - 1)
     assert doc["counters"]["sphere_culled"] > 0.9 * doc["counters"]["pairs"]
     with open(out / "contacts.csv") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == len(res.contacts)
     assert (out / "timeline.png").stat().st_size > 1000
     first = res.contacts[0]
-    assert first["frame"] == 139 - FIRST
-    assert first["bodies"] == ["a_RightArm", "b_LeftForeArm"]
+    assert first["frame"] == 145 - FIRST
+    assert first["bodies"] == ["a_RightForeArm", "b_LeftHand"]
     assert res.time[first["frame"]] <= first["time"] <= res.time[first["frame"] + 1]
-    assert "a_RightArm / b_LeftForeArm" in replay.contact_table(res)
+    assert "a_RightForeArm_1 / b_LeftHand" in replay.contact_table(res)  # a body's several bounds are numbered
     assert "sphere_culled" in replay.summary(res)
 
 
@@ -161,17 +163,17 @@ def test_the_floor_counts_by_default(floor_result, result, short_traj):
     model = replay.load_model(MODEL)
     ellipsoids, _ = replay.replay_ellipsoids(model)
     floor = model.geom("floor").id
-    assert res.plane_pairs.tolist() == [[i, floor] for i in range(42)]
+    assert res.plane_pairs.tolist() == [[i, floor] for i in range(ELLIPSOIDS)]
     assert len(replay.replay_planes(model, ellipsoids, "mujoco")) == 0  # contype 0: not by MuJoCo's rules
     assert len(replay.replay_planes(model, ellipsoids, "none")) == 0
     doc = json.loads((out / "contacts.json").read_text())
-    assert doc["pairs"] == 441 and doc["plane_pairs"] == 42
-    assert doc["counters"]["pairs"] == (441 + 42) * (LAST - FIRST - 1)
+    assert doc["pairs"] == PAIRS and doc["plane_pairs"] == ELLIPSOIDS
+    assert doc["counters"]["pairs"] == (PAIRS + ELLIPSOIDS) * (LAST - FIRST - 1)
     on_floor = [c for c in res.contacts if c["bodies"][1] == "world"]
     assert on_floor and all(c["ellipsoids"][1] == "floor" and c["labels"][1] == "floor" for c in on_floor)
     assert [c for c in res.contacts if c["bodies"][1] != "world"] == result[0].contacts  # the pairs unchanged
     assert any(s["ellipsoids"][1] == "floor" for s in doc["in_contact"])
-    assert "42 ellipsoid-plane pairs" in replay.summary(res)
+    assert f"{ELLIPSOIDS} ellipsoid-plane pairs" in replay.summary(res)
     qpos, _ = replay.load_trajectory(short_traj, model)
     data = mujoco.MjData(model)
     for c in on_floor[:4]:
@@ -243,7 +245,7 @@ def test_cli_runs(tmp_path, capsys, short_traj):
     assert (tmp_path / "contacts.json").exists()
     assert replay.main([str(MODEL), str(short_traj), "--out", str(tmp_path / "e"), "--no-render", "--mode",
                         "ellipsoids", "--planes", "none"]) == 0
-    assert "a_RightArm / b_LeftForeArm" in capsys.readouterr().out
+    assert "a_RightForeArm_1 / b_LeftHand" in capsys.readouterr().out
 
 
 def test_cli_renders_frames_at_floor_contacts_or_says_why_not(tmp_path, short_traj):

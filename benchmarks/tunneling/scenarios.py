@@ -223,12 +223,15 @@ BOXING = ROOT / "models" / "boxing.xml"
 
 
 def boxing_model(timestep):
-    """The boxing scene made physical: b's head and a's right arm collide through their bounding ellipsoids.
+    """The boxing scene made physical: b's head and a's right arm collide through bounding ellipsoids.
 
     The bodies are weightless of gravity and held by their joints' damping; a's
     right shoulder, elbow and wrist are free to swing, everything else keeps
     its pose (the limb capsules and the other bounds stay non-colliding).
     """
+    from mjccd.fitting import Shape, fit_shapes
+    from mjccd.quadric import matrix_to_quat, quat_to_matrix
+
     tree = ET.parse(BOXING)
     root = tree.getroot()
     option = root.find("option")
@@ -238,15 +241,24 @@ def boxing_model(timestep):
     # forces explicitly, so once a contact tilts that spin off its axis the run diverges (MuJoCo resets
     # it); the implicit integrator, MuJoCo's remedy for fast rotation, keeps every mode stable.
     option.set("integrator", "implicit")
-    colliding = {"b_Head_bound": (1, 2), "a_RightForeArm_bound": (2, 1), "a_RightHand_bound": (2, 1)}
-    for geom in root.iter("geom"):
-        name = geom.get("name", "")
+    colliding = {"b_Head": (1, 2), "a_RightForeArm": (2, 1), "a_RightHand": (2, 1)}  # body: contype, conaffinity
+    # one ellipsoid per colliding body, bounding its 1 cm bounds, in their place: the fist's arc through the
+    # head's centre then always meets it
+    for body in root.iter("body"):
+        name = body.get("name", "")
         if name in colliding:
+            bounds = [g for g in body.findall("geom") if g.get("class") == "bound"]
+            centre, rotation, radii = fit_shapes([Shape(
+                "ellipsoid", np.array(g.get("size").split(), float), np.array(g.get("pos").split(), float),
+                quat_to_matrix(np.array(g.get("quat").split(), float))) for g in bounds])
+            for geom in bounds:
+                body.remove(geom)
             ct, ca = colliding[name]
-            geom.set("contype", str(ct))
-            geom.set("conaffinity", str(ca))
-            geom.set("solref", "0.001 1")
-            geom.set("mass", "0.5" if name.startswith("a_") else "4")
+            ET.SubElement(body, "geom", {
+                "name": f"{name}_bound", "class": "bound", "size": " ".join(map(repr, radii.tolist())),
+                "pos": " ".join(map(repr, centre.tolist())),
+                "quat": " ".join(map(repr, matrix_to_quat(rotation).tolist())), "contype": str(ct),
+                "conaffinity": str(ca), "solref": "0.001 1", "mass": "0.5" if name.startswith("a_") else "4"})
     for joint in root.iter("joint"):
         joint.set("damping", "0" if joint.get("name", "") == "a_RightArm" else "1e6")
     for parent in root.iter("body"):

@@ -31,7 +31,8 @@ from mjccd.quadric import Ellipsoid, static_status_code
 from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_report_label
-from mjccd.mujoco.motions import MOTIONS, Kinematics, State, as_state, nonfinite_error, zero_quaternion_error
+from mjccd.mujoco.motions import (MIN_NORM2, MOTIONS, Kinematics, State, as_state, has_zero_quaternion,
+                                  nonfinite_error, quaternion_addresses, zero_quaternion_error)
 from mjccd.mujoco.settle import estimated_touch, settle
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
@@ -197,6 +198,11 @@ class ModelAdapter:
     @cached_property
     def _shapes(self):
         return [Ellipsoid(r) for r in self.radii]
+
+    @cached_property
+    def _quaternions(self):
+        """The qpos addresses of the model's free and ball joint quaternions (read once)."""
+        return quaternion_addresses(self.model)
 
     def motions(self, s0, s1):
         """One exact motion per ellipsoid from :class:`State` s0 (t = 0) to s1 (t = 1), of the adapter's model."""
@@ -397,9 +403,8 @@ class ModelAdapter:
         p0 = poses[0]
         self.check_finite((s0, s1), poses, names)
         for state, name in zip((s0, s1), names):  # a chain's turns divide by its quaternions' norms
-            error = zero_quaternion_error(self.model, state, name)
-            if error is not None:
-                raise error
+            if has_zero_quaternion(state.qpos, np.reshape(state.mocap_quat, (-1, 4)), self._quaternions, MIN_NORM2):
+                raise zero_quaternion_error(self.model, state, name)
         chains = self.chains
         v0, v1 = chains.values(s0), chains.values(s1)
         chains.check_turns(v0, v1)

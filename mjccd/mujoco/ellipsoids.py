@@ -17,14 +17,13 @@ from threadpoolctl import threadpool_limits
 from mjccd import _validate
 from mjccd.errors import InputError, InputTypeError
 from mjccd.fitting import (DEFAULT_TOLERANCE, MAX_ELLIPSOIDS, SURFACE_SAMPLES, VOLUME_SAMPLES, Shape,
-                           TooManyEllipsoids, cover_report, cover_shape, fit_shapes, within_tolerance)
+                           cover_loosened, cover_report, fit_shapes, within_tolerance)
 from mjccd.quadric import matrix_to_quat, quat_to_matrix
 from mjccd.mujoco import fit_cache
 from mjccd.mujoco.warnings import CoverageWarning
 
 FORMAT_VERSION = 1
 BOUND_GROUP = 5  # the geom group mjccd fit writes its bounding ellipsoids to
-LOOSENINGS = 12  # a geom needing too many ellipsoids is tried within 2, 4, ... 4096 times the tolerance
 SUPPORTED = {
     mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
     mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
@@ -486,18 +485,10 @@ def _cover_body(model, body_id, geoms, tolerance, per, max_ellipsoids, emit, not
             emit(body_id, "", [whole], sum(shape.volume() for shape in shapes))
             return
     for g, shape in zip(geoms, shapes):
-        used = tolerance
-        for _ in range(LOOSENINGS + 1):
-            try:
-                cover = cover_shape(shape, used, max_ellipsoids=max_ellipsoids)
-                break
-            except TooManyEllipsoids:
-                used *= 2.0
-            except ValueError as exc:
-                raise ValueError(f"geom {geom_label(model, g)!r}: {exc}") from None
-        else:
-            raise ValueError(f"geom {geom_label(model, g)!r}: needs more than {max_ellipsoids} ellipsoids even within "
-                             f"{used / 2:g} of it")
+        try:
+            cover, used = cover_loosened(shape, tolerance, max_ellipsoids=max_ellipsoids)
+        except ValueError as exc:
+            raise ValueError(f"geom {geom_label(model, g)!r}: {exc}") from None
         if used != tolerance:
             notes.append(f"fit_model: geom {geom_label(model, g)!r} of body {body_label(model, body_id)!r} needs more "
                          f"than {max_ellipsoids} ellipsoids within {tolerance:g} of it; it is covered within {used:g} "

@@ -22,6 +22,7 @@ its ``ok`` is False and ``errors`` names it; the other worlds are.
 """
 import math
 from collections import namedtuple
+from dataclasses import astuple
 from typing import NamedTuple
 
 import numba
@@ -305,6 +306,30 @@ def _firsts(nworlds):
                    np.empty(nworlds), np.empty((nworlds, 3)), np.empty((nworlds, 3)), np.empty(nworlds, dtype=np.int8))
 
 
+def _put_first(out, b, first, outcomes, f):
+    """World b's first contact in ``out`` (:class:`_Firsts`) from a settled :class:`~mjccd.scene.FrameResult`'s
+    ``first`` (None: none) in frame f, with the pairs' settled outcome codes, as :func:`_write_first` writes the
+    kernel's."""
+    if first is None:
+        out.pair[b], out.frame[b], out.time[b], out.time_hi[b], out.outcome[b] = -1, -1, -1.0, -1.0, -1
+        out.point[b] = out.normal[b] = 0.0
+        return
+    out.pair[b], out.frame[b], out.time[b], out.outcome[b] = first.pair, f, first.time, outcomes[first.pair]
+    out.time_hi[b] = first.time if first.bracket is None else first.bracket[1]
+    out.point[b] = 0.0 if first.point is None else first.point
+    out.normal[b] = 0.0 if first.normal is None else first.normal
+
+
+def _put_pairs(per, b, result, outcomes):
+    """World b's rows of ``per`` (:class:`_PerPair`) from a settled check of every pair."""
+    per.outcome[b] = outcomes
+    per.time[b] = per.time_hi[b] = -1.0
+    for c in result.contacts:
+        per.time[b, c.pair] = c.time
+        per.time_hi[b, c.pair] = c.time if c.bracket is None else c.bracket[1]
+    per.counters[b] = astuple(result.counters)
+
+
 def _pose_input(value, field_name, shape):
     """A C-contiguous float64 array of ``shape`` (None: any length >= 0); the error names the field and the shape."""
     try:
@@ -464,7 +489,7 @@ class BatchScene:
         return BatchContacts(out.pair, out.frame, out.time, out.time_hi, out.point, out.normal, out.outcome, ok,
                              errors)
 
-    def _frame(self, poses_t0, poses_t1, all_pairs, new_only, per_pair):
+    def _frame(self, poses_t0, poses_t1, all_pairs, new_only, per_pair, resolve):
         shape = (self.worlds, len(self.radii), 7)
         p0 = _pose_input(poses_t0, "poses_t0", shape)
         p1 = _pose_input(poses_t1, "poses_t1", shape)
@@ -475,27 +500,39 @@ class BatchScene:
             if per_pair else self._none
         self._parallel(frame_kernel, self._refs, p0, p1, self._cache_n, self._cache_kind, all_pairs, new_only, out,
                        per)
+        if resolve:
+            undecided = out.outcome == UNCERTAIN
+            if per_pair and all_pairs:
+                undecided |= (per.outcome == UNCERTAIN).any(axis=1)
+            for b in np.flatnonzero(undecided & (out.status == ORDINARY)).tolist():
+                result, outcomes = self._checks.settled_step(p0[b], p1[b], new_contacts_only=new_only)
+                _put_first(out, b, result.first, outcomes, 0)
+                if per_pair:
+                    _put_pairs(per, b, result, outcomes)
         return self._contacts(out, lambda b, s: f"{('poses_t0', 'poses_t1')[s]}[{b}]"), per
 
     # ------------------------------------------------------------ checks of the worlds
 
     @exclusive
-    def first_contacts(self, poses_t0, poses_t1, *, new_contacts_only=False):
+    def first_contacts(self, poses_t0, poses_t1, *, new_contacts_only=False, resolve_uncertain=True):
         """The first contact of one frame in every world: :class:`BatchContacts` (``frame`` 0, or -1 when none).
 
         Args:
             poses_t0, poses_t1: (B, N, 7) rows ``[x, y, z, w, qx, qy, qz]`` at the
                 start and end of the frame, world b's in ``[b]``.
-            new_contacts_only: as :meth:`mjccd.scene.Scene.step`.
+            new_contacts_only, resolve_uncertain: as :meth:`mjccd.scene.Scene.step`
+                (a world whose first contact the kernel leaves uncertain is
+                checked again as its own scene would, :meth:`Scene.settled_step
+                <mjccd.scene.Scene.settled_step>`, after the parallel call).
         World b's answer is ``Scene.first_contact`` of its poses (and it
         carries its plane cache on the same way).  A wrong shape raises
         :class:`~mjccd.errors.InputError`; a bad value only fails its world.
         """
-        first, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only), False)
+        first, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only), False, bool(resolve_uncertain))
         return first
 
     @exclusive
-    def step(self, poses_t0, poses_t1, *, all_pairs=True, new_contacts_only=False):
+    def step(self, poses_t0, poses_t1, *, all_pairs=True, new_contacts_only=False, resolve_uncertain=True):
         """One frame in every world with every pair's outcome: a :class:`BatchStep`.
 
         With ``all_pairs`` every pair not cleared by a filter is solved over
@@ -503,19 +540,24 @@ class BatchScene:
         (``Scene.step(..., all_pairs=True).contacts``); otherwise only the
         first contact is sought and pairs whose spheres meet after it are
         ``pruned``, as in :meth:`mjccd.scene.Scene.step`.  Arguments as in
-        :meth:`first_contacts`.
+        :meth:`first_contacts`; a world with an uncertain pair (``all_pairs``)
+        or an uncertain first contact is checked again, and its rows are then
+        those of every pair, settled.
         """
-        first, per = self._frame(poses_t0, poses_t1, bool(all_pairs), bool(new_contacts_only), True)
+        first, per = self._frame(poses_t0, poses_t1, bool(all_pairs), bool(new_contacts_only), True,
+                                 bool(resolve_uncertain))
         return BatchStep(first, *per)
 
     @exclusive
-    def first_contacts_along(self, poses, *, new_contacts_only=False):
+    def first_contacts_along(self, poses, *, new_contacts_only=False, resolve_uncertain=True):
         """The first frame with a contact in each world, over a pose sequence: :class:`BatchContacts`.
 
         Args:
             poses: (B, T, N, 7), T >= 2 pose sets per world; frame f runs from
                 ``poses[:, f]`` to ``poses[:, f + 1]``.
-            new_contacts_only: as :meth:`mjccd.scene.Scene.step`.
+            new_contacts_only, resolve_uncertain: as :meth:`first_contacts`; when
+                a world's uncertain first contact proves free, it goes on from
+                the next frame.
         Returns ``frame[b]`` the first frame of world b with a contact and that
         frame's first contact (as :meth:`first_contacts` of that frame).  The
         plane cache carries from frame to frame (and into later calls) up to
@@ -532,4 +574,28 @@ class BatchScene:
         out = _firsts(self.worlds)
         new_only = bool(new_contacts_only)
         self._parallel(along_kernel, self._refs, arr, self._cache_n, self._cache_kind, new_only, out)
+        if resolve_uncertain:
+            for b in np.flatnonzero((out.outcome == UNCERTAIN) & (out.status == ORDINARY)).tolist():
+                self._settle_along(arr, out, b, new_only)
         return self._contacts(out, lambda b, s: f"poses[{b}][{s}]")
+
+    def _settle_along(self, arr, out, b, new_only):
+        """World b's uncertain first contact along ``arr`` settled (:meth:`Scene.settled_step
+        <mjccd.scene.Scene.settled_step>`); while it proves free, the world goes on from the next frame (the
+        along kernel on that world alone, with its own plane cache)."""
+        while True:
+            f = int(out.frame[b])
+            result, outcomes = self._checks.settled_step(arr[b, f], arr[b, f + 1], new_contacts_only=new_only)
+            _put_first(out, b, result.first, outcomes, f)
+            if result.first is not None or f + 2 >= arr.shape[1]:
+                return
+            rest = _firsts(1)
+            along_kernel(self._refs, np.ascontiguousarray(arr[b:b + 1, f + 1:]), self._cache_n[b:b + 1],
+                         self._cache_kind[b:b + 1], new_only, rest)
+            for name in rest._fields:
+                getattr(out, name)[b] = getattr(rest, name)[0]
+            out.fault[b, 0] += f + 1
+            if rest.pair[0] >= 0:
+                out.frame[b] += f + 1
+            if rest.status[0] != ORDINARY or rest.outcome[0] != UNCERTAIN:
+                return

@@ -40,7 +40,7 @@ results of the last frame, the scratch of the kernels) are one
 """
 import array
 import collections
-from dataclasses import dataclass, fields
+from dataclasses import astuple, dataclass, fields, replace
 from typing import NamedTuple
 
 import numba
@@ -56,6 +56,7 @@ from mjccd import filters as fl
 from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
 from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, plane_pair_kernel, plane_rows
+from mjccd.settle import pair_problem, settle
 from mjccd.quadric import (pencil_point_into, pencil_quartic, quadric_matrix, quartic_max,
                             separating_plane_matrices, static_status_pose)
 from mjccd.sorting import sort_by_key
@@ -996,7 +997,9 @@ class FrameResult:
     with ``all_pairs`` any of ``contacts``; see :class:`PairContact`), else
     "certified".  ``counters.uncertain`` also counts uncertain pairs that
     cannot change the answer (their bracket starts at or after the first
-    contact).
+    contact).  What the compiled kernel leaves uncertain is asked again of
+    the core's exact tiers (:mod:`mjccd.settle`) unless the caller said
+    ``resolve_uncertain=False``; the counters then count what is left.
     """
 
     first: object
@@ -1336,7 +1339,7 @@ class Scene:
         return best_k, niv
 
     @exclusive
-    def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False):
+    def step(self, poses_t0, poses_t1, *, all_pairs=False, new_contacts_only=False, resolve_uncertain=True):
         """Check one frame.
 
         Args:
@@ -1347,17 +1350,66 @@ class Scene:
             new_contacts_only: leave out pairs already touching or overlapping at
                 the start (they are still counted); the first contact is then the
                 earliest new one, found with the earliest-contact bound.
+            resolve_uncertain: ask what the compiled kernel (double precision
+                only) leaves uncertain again of the core's exact tiers
+                (:mod:`mjccd.settle`): each such pair comes back certified,
+                certified free, or uncertain with a bracket that holds every
+                possible first contact.  An uncertain first contact sends the
+                frame through every pair first, since a later one may then come
+                first.  False: the kernel's own answers (its brackets end where
+                rounding stopped deciding).
         Returns:
             :class:`FrameResult`.
         """
-        all_pairs = bool(all_pairs)
-        best_k, niv = self._frame(poses_t0, poses_t1, all_pairs, bool(new_contacts_only))
+        all_pairs, new_only = bool(all_pairs), bool(new_contacts_only)
+        result = self._result(*self._frame(poses_t0, poses_t1, all_pairs, new_only), all_pairs)
+        if result.certainty == "uncertain" and resolve_uncertain:
+            if not all_pairs:  # which contact comes first is known only once every pair is
+                result = self._result(*self._frame(poses_t0, poses_t1, True, new_only), True)
+            result = self._settled(result, new_only, all_pairs)
+        return result
+
+    def _result(self, best_k, niv, all_pairs):
+        """The :class:`FrameResult` of the kernel's last frame, read off the workspace."""
         a = self._arrays
         return frame_result(a.pairs, best_k, a.outcome, a.times, a.times_hi, a.points, a.normals, a.counters,
                             (self._iv[:niv], self._owner[:niv]) if all_pairs else None, self._plane_rows)
 
+    def pair_problem(self, k):
+        """(shape_a, motion_a, shape_b or :class:`~mjccd.Plane`, motion_b or None): what the core solves for pair
+        k (a plane pair from ``len(pairs)`` on) over the last frame checked, the motion the kernel solved."""
+        a = self._arrays
+        return pair_problem(self.motion, a.radii, a.pairs, a.planes, a.plane_pairs, a.p0, a.q0, a.p1, a.q1, int(k))
+
+    def _settled(self, result, new_only, all_pairs):
+        """``result`` (every pair's contacts) with its uncertain contacts asked again of the core; the first
+        contact is the earliest of what is left (lowest pair index on a tie, as the kernel chooses)."""
+        contacts, tally = settle(self.pair_problem, result.contacts, new_only, self._contact_of, intervals=all_pairs)
+        c = result.counters
+        counters = replace(c, uncertain=c.uncertain - tally["settled"], colliding=c.colliding + tally["found"],
+                           overlapping_t0=c.overlapping_t0 + tally["not_new"])
+        first = min(contacts, key=lambda x: (x.time, x.pair), default=None)
+        if all_pairs:
+            certain = all(x.certainty == "certified" for x in contacts)
+        else:
+            first = first if first is None else replace(first, intervals=())
+            contacts = ()
+            certain = first is None or first.certainty == "certified"
+        return FrameResult(first, tuple(contacts), counters, "certified" if certain else "uncertain")
+
+    def _contact_of(self, k, answer):
+        """The :class:`PairContact` or :class:`PlaneContact` of pair k from the core's answer."""
+        pairs = self._arrays.pairs
+        certainty = "certified" if answer.bracket is None else "uncertain"
+        if k < len(pairs):
+            return PairContact(k, (int(pairs[k, 0]), int(pairs[k, 1])), answer.time, answer.point, answer.normal,
+                               answer.intervals, certainty, answer.bracket)
+        e, row = (int(x) for x in self._arrays.plane_pairs[k - len(pairs)])
+        return PlaneContact(k, e, row, answer.time, answer.point, answer.normal, answer.intervals, certainty,
+                            answer.bracket)
+
     @exclusive
-    def first_contact(self, poses_t0, poses_t1, *, new_contacts_only=False):
+    def first_contact(self, poses_t0, poses_t1, *, new_contacts_only=False, resolve_uncertain=True):
         """The first contact of one frame, without the result objects of :meth:`step`: None or a :class:`FirstContact`.
 
         The same compiled kernel on the same buffers and plane cache as
@@ -1370,14 +1422,20 @@ class Scene:
         if best_k < 0:
             return None
         a = self._arrays
-        return first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
+        first = first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
+        if first.bracket is None or not resolve_uncertain:
+            return first
+        c = self.step(poses_t0, poses_t1, new_contacts_only=new_contacts_only).first
+        return None if c is None else FirstContact(c.pair, c.time, c.point, c.normal, c.bracket)
 
     @exclusive
     def first_pair(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """The pair index of the first contact of one frame (-1: none), for callers that read the rest of the
         answer from :attr:`workspace` (``outcome``, ``times``, ``points``, ... of every pair, ``counters``).
 
-        The check of :meth:`first_contact`, which is :func:`first_of` of this index.  Arguments as in :meth:`step`.
+        The check of :meth:`first_contact`, which is :func:`first_of` of this index: the compiled kernel's own
+        answer (an uncertain one, outcome ``UNCERTAIN``, is not asked again; :meth:`step` asks).  Arguments as in
+        :meth:`step`.
         """
         best_k, _ = self._frame(poses_t0, poses_t1, False, bool(new_contacts_only))
         return int(best_k)
@@ -1400,12 +1458,14 @@ class Scene:
         return bool(may_touch_kernel(self._ref, a.p0, a.q0, a.p1, a.q1))
 
     @exclusive
-    def run(self, poses, *, timing=False, new_contacts_only=False):
+    def run(self, poses, *, timing=False, new_contacts_only=False, resolve_uncertain=True):
         """Check F frames of a pose sequence (F + 1, N, 7) in one compiled call; see :class:`RunResult`.
 
         The plane cache carries from frame to frame (and into later calls).
         ``timing`` records CPU cycles per pair (for benchmarks);
-        ``new_contacts_only`` as in :meth:`step`.
+        ``new_contacts_only`` and ``resolve_uncertain`` as in :meth:`step`: a frame whose first contact the
+        kernel leaves uncertain is checked again through every pair and settled, and its row of the result
+        (first contact, counters, outcomes) is that check's.
         """
         arr = _validate.array(poses, (None, len(self.radii), 7), "poses")
         if arr.shape[0] < 2:
@@ -1428,7 +1488,47 @@ class Scene:
         uncertain = np.zeros(nf, dtype=np.int8)
         hit = np.flatnonzero(out.pair >= 0)
         uncertain[hit] = out.outcomes[hit, out.pair[hit]] == UNCERTAIN
+        if resolve_uncertain and uncertain.any():
+            self._settle_frames(arr, out, uncertain, bool(new_contacts_only))
         return RunResult(*out, uncertain)
+
+    @exclusive
+    def settled_step(self, poses_t0, poses_t1, *, new_contacts_only=False):
+        """``(result, outcomes)``: :meth:`step` through every pair with its uncertain contacts settled (a
+        :class:`FrameResult`), and the outcome code of every pair after that ((P + Q,) int8: a settled pair is
+        ``EXACT_HIT``, ``OVERLAP_T0`` at t = 0, ``EXACT_FREE``, or still ``UNCERTAIN``).  How :meth:`run`'s
+        frames and :class:`~mjccd.batch.BatchScene`'s worlds with an uncertain answer are checked again; the
+        plane cache is left as it was."""
+        a = self._arrays
+        new_only = bool(new_contacts_only)
+        cache = a.cache_n.copy(), a.cache_kind.copy()
+        try:
+            result = self._result(*self._frame(poses_t0, poses_t1, True, new_only), True)
+        finally:
+            a.cache_n[:], a.cache_kind[:] = cache
+        outcomes = a.outcome.copy()
+        if result.certainty == "uncertain":
+            result = self._settled(result, new_only, True)
+            answered = {c.pair: c for c in result.contacts}
+            for k in np.flatnonzero(outcomes == UNCERTAIN).tolist():
+                c = answered.get(k)
+                outcomes[k] = (EXACT_FREE if c is None else UNCERTAIN if c.certainty == "uncertain"
+                               else OVERLAP_T0 if c.time == 0.0 else EXACT_HIT)
+        return result, outcomes
+
+    def _settle_frames(self, poses, out, uncertain, new_only):
+        """Each frame f of :meth:`run` whose first contact is uncertain, checked again (:meth:`settled_step`),
+        written into row f of ``out`` and ``uncertain``."""
+        for f in np.flatnonzero(uncertain).tolist():
+            result, out.outcomes[f] = self.settled_step(poses[f], poses[f + 1], new_contacts_only=new_only)
+            out.counters[f] = astuple(result.counters)
+            first = result.first
+            out.pair[f] = -1 if first is None else first.pair
+            out.time[f] = -1.0 if first is None else first.time
+            touch = first is not None and first.certainty == "certified" and first.point is not None
+            out.point[f] = first.point if touch else 0.0
+            out.normal[f] = first.normal if touch else 0.0
+            uncertain[f] = first is not None and first.certainty == "uncertain"
 
 
 split_poses = _split_poses

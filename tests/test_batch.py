@@ -221,3 +221,64 @@ def test_cache_and_min_motion_per_world():
     assert np.array_equal(batch.min_motion, slow)
     with pytest.raises(InputError, match=r"^min_motion\[0\]: expected a distance >= 0"):
         batch.set_min_motion(-slow)
+
+
+def test_worlds_the_kernel_leaves_uncertain_are_asked_again():
+    """The hard rigid cases of the shared set, each in a batch of two worlds (the case, and the case with its end
+    poses at both ends of a first frame): every world answers as a Scene of its own, which asks the core again
+    about what its kernel leaves uncertain; first_contacts_along finds the same contact in frame 1."""
+    from test_scene import _hard_rigid_cases, _holds
+
+    for name, radii, p0, p1, t in _hard_rigid_cases():
+        batch = BatchScene(radii, 2)
+        got = batch.first_contacts(np.stack([p0, p0]), np.stack([p1, p1]))
+        first = Scene(radii).first_contact(p0, p1)
+        assert _holds(first, t), name
+        for b in range(2):
+            assert_same_first(got, b, first)
+        step = batch.step(np.stack([p0, p0]), np.stack([p1, p1]))
+        assert_same_first(step.first, 0, first)
+        assert not (step.outcome == UNCERTAIN).any() or first is not None and first.bracket is not None, name
+        raw = batch.first_contacts(np.stack([p0, p0]), np.stack([p1, p1]), resolve_uncertain=False)
+        assert_same_first(raw, 0, Scene(radii).first_contact(p0, p1, resolve_uncertain=False))
+        still = np.stack([p0, p0, p1])  # frame 0 does not move (the pair is separate or in contact at t = 0)
+        along = BatchScene(radii, 1).first_contacts_along(still[None])
+        if first is not None and first.time > 0.0:
+            assert along.frame[0] == 1, name
+            assert_same_first(along, 0, first)
+
+
+def _clear_thin_pair():
+    """(radii, poses_t0, poses_t1): a 1000:1 disk passing 1e-5 of its size clear of another, edge over face (the
+    stacked family of tests/test_adversarial.py, whose fourth case of this seed it is)."""
+    import random
+
+    import test_adversarial as ta
+    from test_scene import _two_pose_poses
+
+    rng = random.Random(5)
+    for n in range(4):
+        delta = [1e-5, 1e-4, 1e-3][n % 3] * (1 if (n // 3) % 2 else -1)
+        ra, rb = [(ta.DISK_FACE, ta.DISK_FACE), (ta.NEEDLE_UP, ta.DISK_FACE), (ta.NEEDLE_FLAT, ta.NEEDLE_FLAT),
+                  (ta.DISK_EDGE, ta.DISK_FACE)][n % 4]
+        case = ta._stacked(rng, f"c{n}", list(ra), list(rb), delta, n % 5 < 2, [])
+    return [ra, rb], *_two_pose_poses(case)
+
+
+def test_a_possible_contact_proven_free_goes_on_to_the_next_frame():
+    """The kernel calls the clear pair a possible contact; the core proves it free.  Along two frames (the pass,
+    then b moved onto a), each world's first contact is then in frame 1, as a frame loop of Scenes says."""
+    radii, p0, p1 = _clear_thin_pair()
+    raw = Scene(radii).step(p0, p1, resolve_uncertain=False).first
+    assert raw is not None and raw.bracket is not None  # the kernel's "possible contact"
+    assert Scene(radii).step(p0, p1).first is None and Scene(radii).first_contact(p0, p1) is None
+    onto = p1.copy()
+    onto[1, :3] = p1[0, :3]  # b's centre moved to a's: they overlap at the end of frame 1
+    seq = np.stack([p0, p1, onto])
+    along = BatchScene(radii, 2).first_contacts_along(np.stack([seq, seq]))
+    want = frame_loop(Scene(radii), seq)
+    assert want[0] == 1
+    for b in range(2):
+        assert_same_along(along, b, *want)
+    first = BatchScene(radii, 1).first_contacts(p0[None], p1[None])
+    assert first.pair[0] == -1 and first.outcome[0] == -1

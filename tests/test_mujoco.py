@@ -474,7 +474,7 @@ def test_monitor_settles_what_the_scene_leaves_uncertain(limited_scene):
 
 
 def test_monitor_reports_uncertain_scene_answers(limited_scene, monkeypatch):
-    import mjccd.mujoco.settle as settle
+    import mjccd.settle as settle
     from mjccd.ccd import Contact
     from mjccd.mujoco.monitor import StepCheck
 

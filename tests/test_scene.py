@@ -313,12 +313,12 @@ def test_python_kernel_equals_the_compiled_one(python_kernel):
 
 
 def test_uncertain_first_contact_is_a_possible_contact_at_its_bracket(python_kernel):
-    """See three_pairs: pair 1 (which touches at 0.25) hits a limit, bracket [0.2, 0.3]: it is the first
+    """The kernel's own answer (resolve_uncertain=False).  See three_pairs: pair 1 (which touches at 0.25) hits a limit, bracket [0.2, 0.3]: it is the first
     contact at 0.2, uncertain, with the estimate of its point (where the spheres nearly touch at 0.2: between
     their surfaces at x = 10.5 and 10.7); counted as uncertain, not colliding; pair 2 is pruned by it."""
     python_kernel({10.0: _limit(0.2, 0.3)})
     scene, p0, p1 = three_pairs()
-    res = scene.step(p0, p1, new_contacts_only=True)
+    res = scene.step(p0, p1, new_contacts_only=True, resolve_uncertain=False)
     assert res.certainty == "uncertain"
     first = res.first
     assert (first.pair, first.time, first.certainty, first.bracket) == (1, 0.2, "uncertain", (0.2, 0.3))
@@ -333,11 +333,11 @@ def test_uncertain_first_contact_is_a_possible_contact_at_its_bracket(python_ker
 
 def test_uncertain_first_contact_keeps_its_bracket(python_kernel):
     """Pair 1's solver estimates its first contact at 0.25 but proves it only within [0.2, 0.3] (a first-only
-    answer that hit a limit): the scene reports the bracket, not the estimate, and the point estimated at the
+    answer that hit a limit): the scene's kernel reports the bracket, not the estimate, and the point estimated at the
     bracket's start."""
     python_kernel({10.0: _limit(0.2, 0.3, intervals=[(0.25, 0.25)], touch=True)})
     scene, p0, p1 = three_pairs()
-    res = scene.step(p0, p1, new_contacts_only=True)
+    res = scene.step(p0, p1, new_contacts_only=True, resolve_uncertain=False)
     first = res.first
     assert (first.pair, first.time, first.certainty, first.bracket) == (1, 0.2, "uncertain", (0.2, 0.3))
     _assert_estimate_between_the_spheres(first)
@@ -360,28 +360,71 @@ def _two_pose_poses(case):
     return np.array([pose(ma, "start"), pose(mb, "start")]), np.array([pose(ma, "end"), pose(mb, "end")])
 
 
-def test_scene_brackets_hold_the_oracles_first_contact():
-    """The hard rigid cases (needles, disks, grazes) in a two-body Scene, whose kernel has no rational tier:
-    every first contact is the oracle's within 1e-9 when certified, and inside its bracket when uncertain."""
+def _hard_rigid_cases():
+    """(id, radii, poses_t0, poses_t1, the oracle's first contact or None) of the shared hard cases whose bodies
+    are rigid or static."""
     data = Path(__file__).parent / "data"
     cases = json.loads((data / "adversarial_public.json").read_text())["cases"]
     want = {r["id"]: r for r in json.loads((data / "adversarial_expected.json").read_text())["results"]}
-    uncertain = 0
-    for case in cases:
-        if {case["a"]["motion"]["type"], case["b"]["motion"]["type"]} - {"rigid", "static"}:
-            continue
-        p0, p1 = _two_pose_poses(case)
-        first = Scene([case["a"]["radii"], case["b"]["radii"]]).step(p0, p1).first
-        t = want[case["id"]]["first_contact"]
-        if first is None:
-            assert t is None, case["id"]
-        elif first.bracket is None:
-            assert t is not None and abs(first.time - t) <= 1e-9, case["id"]
-        else:
-            uncertain += 1
-            lo, hi = first.bracket
-            assert first.time == lo and (t is None or lo - 1e-12 <= t <= hi + 1e-12), case["id"]  # a miss may be possible
-    assert uncertain >= 2  # the needles and grazes the rational tier settles elsewhere
+    return [(case["id"], [case["a"]["radii"], case["b"]["radii"]], *_two_pose_poses(case),
+             want[case["id"]]["first_contact"]) for case in cases
+            if not {case["a"]["motion"]["type"], case["b"]["motion"]["type"]} - {"rigid", "static"}]
+
+
+def _holds(first, t):
+    """A FirstContact (or None) agrees with the oracle's time t: certified within 1e-9, or t in its bracket."""
+    if first is None:
+        return t is None
+    if first.bracket is None:
+        return t is not None and abs(first.time - t) <= 1e-9
+    lo, hi = first.bracket
+    return first.time == lo and (t is None or lo - 1e-12 <= t <= hi + 1e-12)  # a miss may be possible
+
+
+def test_scene_brackets_hold_the_oracles_first_contact():
+    """The hard rigid cases (needles, disks, grazes) in a two-body Scene: the compiled kernel (no rational tier)
+    leaves some uncertain, each holding the oracle's first contact; the Scene asks the core again about those,
+    and every one comes back certified as the oracle's."""
+    kernel_uncertain = uncertain = 0
+    for name, radii, p0, p1, t in _hard_rigid_cases():
+        raw = Scene(radii).step(p0, p1, resolve_uncertain=False).first
+        assert _holds(raw, t), name
+        kernel_uncertain += raw is not None and raw.bracket is not None
+        scene = Scene(radii)
+        first = scene.step(p0, p1).first
+        assert _holds(first, t), name
+        uncertain += first is not None and first.bracket is not None
+        again = scene.first_contact(p0, p1)
+        assert (again is None) == (first is None) and (again is None or again.time == first.time), name
+    assert kernel_uncertain >= 2 and uncertain == 0, (kernel_uncertain, uncertain)
+
+
+def test_an_uncertain_bracket_that_misses_the_truth_is_asked_again(python_kernel):
+    """The kernel's stand-in says pair 1 of three_pairs, which first touches at 0.25, touches "somewhere in
+    [0.1, 0.2]": a bracket that misses the truth.  Scene asks the core again and reports 0.25, certified, with
+    its point, in step (first only and every pair), first_contact and run; resolve_uncertain=False keeps the
+    kernel's answer."""
+    from mjccd.scene import EXACT_HIT
+
+    python_kernel({10.0: _limit(0.1, 0.2)})
+    scene, p0, p1 = three_pairs()
+    raw = scene.step(p0, p1, new_contacts_only=True, resolve_uncertain=False)
+    assert (raw.first.pair, raw.first.bracket, raw.counters.uncertain) == (1, (0.1, 0.2), 1)
+    res = scene.step(p0, p1, new_contacts_only=True)
+    assert (res.certainty, res.first.pair, res.first.bracket, res.counters.uncertain) == ("certified", 1, None, 0)
+    assert res.first.time == pytest.approx(0.25, abs=1e-12) and res.first.point is not None
+    # checked again through every pair: the overlap at the start, pair 1 (now known) and pair 2 collide
+    assert (res.counters.colliding, res.counters.pruned) == (3, 0)
+    full = scene.step(p0, p1, all_pairs=True, new_contacts_only=True)
+    assert [(c.pair, c.certainty) for c in full.contacts] == [(1, "certified"), (2, "certified")]
+    assert full.contacts[0].intervals[0][0] == pytest.approx(0.25, abs=1e-12) and full.first.pair == 1
+    first = scene.first_contact(p0, p1, new_contacts_only=True)
+    assert (first.pair, first.bracket) == (1, None) and first.time == pytest.approx(0.25, abs=1e-12)
+    run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True)
+    assert (run.pair[0], run.uncertain[0], run.outcomes[0, 1]) == (1, 0, EXACT_HIT)
+    assert run.time[0] == pytest.approx(0.25, abs=1e-12) and run.point[0].any()
+    raw_run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True, resolve_uncertain=False)
+    assert (raw_run.pair[0], raw_run.time[0], raw_run.uncertain[0]) == (1, 0.1, 1)
 
 
 def test_uncertain_pairs_with_all_pairs(python_kernel):
@@ -392,7 +435,7 @@ def test_uncertain_pairs_with_all_pairs(python_kernel):
                    10.0: _limit(0.25, 0.25, intervals=[(0.25, 0.5)], touch=True),
                    0.0: _limit(0.0, 0.0, status0=-1, intervals=[(0.0, 0.4)])})
     scene, p0, p1 = three_pairs()
-    res = scene.step(p0, p1, all_pairs=True)
+    res = scene.step(p0, p1, all_pairs=True, resolve_uncertain=False)
     assert res.certainty == "uncertain"
     by_pair = {c.pair: c for c in res.contacts}
     assert sorted(by_pair) == [0, 1, 2]
@@ -426,7 +469,7 @@ def test_uncertain_pair_after_the_first_contact_leaves_it_certified(python_kerne
 def test_run_flags_uncertain_frames(python_kernel):
     python_kernel({10.0: _limit(0.2, 0.3)})
     scene, p0, p1 = three_pairs()
-    run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True)
+    run = scene.run(np.stack([p0, p1, p1]), new_contacts_only=True, resolve_uncertain=False)
     assert run.uncertain.dtype == np.int8 and run.uncertain.tolist() == [1, 0]
     assert run.time[0] == 0.2 and run.pair[0] == 1 and 10.5 <= run.point[0][0] <= 10.7  # the estimate
     # colliding: only the pair overlapping at the start; the uncertain one is counted apart
@@ -491,10 +534,10 @@ def test_uncertain_first_contact_equals_step_first(python_kernel):
     """See three_pairs: pair 1 hits a limit, bracket [0.2, 0.3]: first_contact gives the same uncertain answer."""
     python_kernel({10.0: _limit(0.2, 0.3)})
     scene, p0, p1 = three_pairs()
-    fc = scene.first_contact(p0, p1, new_contacts_only=True)
+    fc = scene.first_contact(p0, p1, new_contacts_only=True, resolve_uncertain=False)
     assert (fc.pair, fc.time, fc.bracket) == (1, 0.2, (0.2, 0.3))
     _assert_estimate_between_the_spheres(fc)
-    assert _same_first(fc, scene.step(p0, p1, new_contacts_only=True).first)
+    assert _same_first(fc, scene.step(p0, p1, new_contacts_only=True, resolve_uncertain=False).first)
 
 
 def _new_contacts_exact(radii, pairs, p0, p1, motion):

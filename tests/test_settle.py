@@ -1,5 +1,5 @@
-"""Ellipsoid mode's uncertain contacts: the scene's undecided pairs settled by the core's exact tiers
-(mjccd.mujoco.settle), and an estimated point on whatever stays uncertain."""
+"""Uncertain contacts of the compiled scene: its undecided pairs settled by the core's exact tiers (mjccd.settle),
+and an estimated point on whatever stays uncertain."""
 import warnings
 
 import numpy as np
@@ -8,7 +8,7 @@ import pytest
 import mjccd
 from mjccd.mujoco import CCDMonitor, fit_model
 from mjccd.mujoco.motions import capture
-from mjccd.mujoco.settle import estimated_touch
+from mjccd.settle import estimated_touch
 
 
 @pytest.mark.dm_control
@@ -35,12 +35,12 @@ def test_the_scenes_undecided_pairs_are_settled_as_the_core_answers_them():
         report = monitor.last_report
         assert not report.unstable
         p1 = adapter.poses(capture(data))
-        frame = adapter.scene.step(p0, p1, all_pairs=True)
+        frame = adapter.scene.step(p0, p1, all_pairs=True, resolve_uncertain=False)  # the kernel's own answers
         undecided = [c.pair for c in frame.contacts if c.bracket is not None]
         scene_uncertain += len(undecided)
         reported = {c.pair: c for c in report.contacts}
         for k in undecided:
-            shape_a, motion_a, shape_b, motion_b = adapter.pair_problem(k, p0, p1)
+            shape_a, motion_a, shape_b, motion_b = adapter.scene.pair_problem(k)
             alone = mjccd.first_contact(shape_a, motion_a, shape_b, motion_b)
             if alone is None:
                 assert k not in reported

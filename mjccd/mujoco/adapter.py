@@ -16,6 +16,7 @@ Answers come back as :class:`StepReport` and :class:`StepContact` in simulation 
 import math
 import pathlib
 import sys
+from dataclasses import astuple
 from functools import cached_property
 
 import mujoco
@@ -28,12 +29,12 @@ from mjccd.filters import EPS
 from mjccd.motion import Affine, Rigid
 from mjccd.plane import Plane, plane_first_contact
 from mjccd.quadric import Ellipsoid, static_status_code
+from mjccd.settle import estimated_touch
 from mjccd.scene import OVERLAP_T0, Scene, first_of
 from mjccd.mujoco.chains import ChainLayout
 from mjccd.mujoco.ellipsoids import EllipsoidSet, body_report_label
 from mjccd.mujoco.motions import (MIN_NORM2, MOTIONS, Kinematics, State, as_state, has_zero_quaternion,
                                   nonfinite_error, quaternion_addresses, zero_quaternion_error)
-from mjccd.mujoco.settle import estimated_touch, settle
 from mjccd.mujoco.reports import (COUNTER_NAMES, UNSTABLE_REPORT, StepContact, StepCounters,  # noqa: F401
                                    StepReport)
 from mjccd.mujoco.warnings import mujoco_warnings
@@ -343,32 +344,12 @@ class ModelAdapter:
         scene = self.scene
         if not all_pairs:
             return self.scene_report(t0, t1, scene.first_pair(p0, p1, new_contacts_only=new_only), p0, p1, new_only)
-        frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)
+        frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)  # its uncertain pairs settled
         contacts = [self._converted(t0, t1, c, p0) for c in frame.contacts]
-        counters = self._counters.tolist()  # pairs, ..., colliding (6), ..., uncertain (8): FrameCounters' order
-        if counters[8]:  # what the scene could not decide, asked of the core's exact tiers
-            def make(k, fraction, point, normal, status, bracket):
-                return self.contact(t0, t1, k, fraction, point, normal, p0, bracket, status)
-
-            contacts, settled, dropped = settle(lambda k: self.pair_problem(k, p0, p1), contacts, new_only, make)
-            counters[8] -= settled
-            counters[6] -= dropped
+        counters = list(astuple(frame.counters))  # pairs, ..., solved_exactly (5), ..., uncertain (8)
         contacts.sort(key=lambda c: c.fraction)
         first = contacts[0] if contacts else None
         return StepReport(first, tuple(contacts), counters[0], counters[5], counters[8], False, StepCounters(counters))
-
-    def pair_problem(self, k, p0, p1):
-        """(shape_a, motion_a, shape_b or :class:`~mjccd.Plane`, motion_b or None) of pair k (a plane pair: k
-        past the ellipsoid pairs) in the scene's motion from ellipsoid poses p0 to p1: what the core solves
-        for it."""
-        npairs = len(self.pairs)
-        if k < npairs:
-            i, j = (int(x) for x in self.pairs[k])
-            return (self._shapes[i], self._pose_motion(p0[i], p1[i]),
-                    self._shapes[j], self._pose_motion(p0[j], p1[j]))
-        i, plane = (int(x) for x in self._plane_rows[k - npairs])
-        return (self._shapes[i], self._pose_motion(p0[i], p1[i]),
-                Plane(self.planes[plane, :3], self.planes[plane, 3]), None)
 
     def scene_report(self, t0, t1, best_k, p0, p1, new_only=False):
         """The :class:`StepReport` of the scene's last first-contact check (of a step from time ``t0`` to ``t1``

@@ -20,6 +20,7 @@ import numpy as np
 from mjccd.exact import _det
 
 U_CANDIDATES = 4        # the best u of the float search compared exactly
+MAXIMUM_BITS = 60       # the quartic's maxima in u are located to 2^-60 when the float search fails
 
 
 def _integers(A, B):
@@ -55,7 +56,58 @@ def _best_u(pair):
     binomials = np.array([1.0, 4.0, 6.0, 4.0, 1.0])
     quartic = sum(c[i] * binomials[i] * grid ** i * (1.0 - grid) ** (4 - i) for i in range(5))
     candidates = [Fraction(float(u)) for u in grid[np.argsort(quartic)[-U_CANDIDATES:]] if 0.0 < u < 1.0]
-    return max(candidates or [Fraction(1, 2)], key=lambda u: _pencil_det(pair, u))
+    best = max((_pencil_det(pair, u), u) for u in candidates or [Fraction(1, 2)])
+    if best[0] > 0:
+        return best[1]
+    # the floats can miss a narrow peak, or their rounding lift a wrong end: the maxima located exactly
+    return max([best] + [(_pencil_det(pair, u), u) for u in _maxima(coefficients)])[1]
+
+
+def _maxima(coefficients):
+    """The local maxima in (0, 1) of the quartic with these exact Bernstein coefficients, to 2^-MAXIMUM_BITS.
+
+    Its derivative is monotone between the roots of its second derivative (a
+    quadratic: its vertex, then bisection on each side), so each change of the
+    derivative's sign from + to - there is one maximum, found by bisection.
+    Every sign is taken exactly, on integers: the witness u they give is then
+    checked exactly by its determinant, so it need not be exact itself.
+    """
+    n = len(coefficients) - 1
+    power = [sum(coefficients[i] * comb(n, i) * comb(n - i, k - i) * (-1) ** (k - i) for i in range(k + 1))
+             for k in range(n + 1)]
+    scale = math.lcm(*(Fraction(c).denominator for c in power))
+    power = [int(Fraction(c) * scale) for c in power]
+    first = [k * power[k] for k in range(1, n + 1)]
+    second = [k * first[k] for k in range(1, n)]
+    one = 1 << MAXIMUM_BITS
+
+    def sign(poly, m):  # the sign of poly at u = m / 2^bits, times 2^(bits * degree)
+        degree = len(poly) - 1
+        value = sum(c * m ** j << (MAXIMUM_BITS * (degree - j)) for j, c in enumerate(poly))
+        return (value > 0) - (value < 0)
+
+    def root(poly, lo, hi):  # a sign change of poly in [lo, hi], narrowed by bisection
+        s_lo = sign(poly, lo)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if sign(poly, mid) == s_lo:
+                lo = mid
+            else:
+                hi = mid
+        return lo
+
+    splits = {0, one}
+    if len(second) == 3 and second[2] != 0:
+        vertex = Fraction(-second[1], 2 * second[2])
+        if 0 < vertex < 1:
+            splits.add(math.floor(vertex * one))
+    edges = sorted(splits)
+    for lo, hi in zip(edges, edges[1:]):
+        if sign(second, lo) * sign(second, hi) < 0:
+            splits.add(root(second, lo, hi))
+    edges = sorted(splits)
+    return [Fraction(root(first, lo, hi), one) for lo, hi in zip(edges, edges[1:])
+            if sign(first, lo) > 0 and sign(first, hi) < 0]
 
 
 def _bernstein_of_values(values):

@@ -1,6 +1,7 @@
 """The exact static status (mjccd.exact) and the certified double-precision tests that defer to it."""
 import math
 from fractions import Fraction
+from pathlib import Path
 
 import mpmath
 import numpy as np
@@ -647,3 +648,38 @@ def test_a_stretch_is_proven_separate_exactly_up_to_the_contact():
     A, B, degree = _sphere_pair(-1.0)   # centre distance 3 - 2 t: touching at t = 1/2
     proven, failed = separate_until(A, B, degree, 0.0, 1.0, Fraction(1, 2 ** 10), 200)
     assert proven <= Fraction(1, 2) and failed is not None
+
+
+def test_the_witness_is_the_quartics_maximum_where_the_float_search_misses_it():
+    """A quartic in u with a narrow positive peak at u = 1/1000 and a flat negative rest (as det((1 - u) A + u B)
+    is for a 1000:1 disk just clear of another): the float grid's candidates all lie where it is negative, and
+    the exact search finds the peak to 2^-60."""
+    from mjccd.exact_stretch import _bernstein_of_values, _maxima
+
+    peak = Fraction(1, 1000)
+    q = lambda u: Fraction(1, 10 ** 12) - (u - peak) ** 2 * (1 + u) ** 2  # noqa: E731 (a peak of 1e-12)
+    coefficients = _bernstein_of_values([q(Fraction(k, 4)) for k in range(5)])
+    maxima = _maxima(coefficients)
+    assert len(maxima) == 1 and abs(maxima[0] - peak) < Fraction(1, 2 ** 50) and q(maxima[0]) > 0
+
+
+def test_thin_disks_just_clear_of_each_other_are_proven_free():
+    """1000:1 needles over disks and disks edge over face, passing 1e-6 of their size clear of each other (the
+    stacked family of tests/test_adversarial.py): the rational stretch proof certifies every one free.  Before
+    the exact search for the witness u, the float search picked a u near 1 where the determinant is negative,
+    and these came back as possible contacts with brackets like [0.39, 1.0]."""
+    import random
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import test_adversarial as ta
+
+    rng = random.Random(5)
+    for n, (ra, rb, a_static) in enumerate([(ta.NEEDLE_UP, ta.DISK_FACE, False), (ta.DISK_FACE, ta.DISK_EDGE, False)]
+                                           * 2):
+        case = ta._stacked(rng, f"clear-{n}", list(ra), list(rb), 1e-6 * max(ra + rb), a_static, [])
+        motions = []
+        for m in (case["a"]["motion"], case["b"]["motion"]):
+            motions.append(mjccd.Rigid(m["start"]["position"], m["start"]["quaternion"], m["end"]["position"],
+                                       m["end"]["quaternion"]))
+        assert mjccd.first_contact(mjccd.Ellipsoid(ra), motions[0], mjccd.Ellipsoid(rb), motions[1]) is None, n

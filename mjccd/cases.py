@@ -20,7 +20,7 @@ import reprlib
 import numpy as np
 
 from mjccd import _validate, interrupts
-from mjccd.ccd import PACKED_HEAD, _needs_exact, solve_pair, two_pose_batch
+from mjccd.ccd import PACKED_HEAD, needs_exact, solve_pair, two_pose_batch
 from mjccd.errors import InputError
 from mjccd.geoms.shapes import shape_from_json
 from mjccd.geoms.solve import geom_collision_intervals, geom_first_contact
@@ -374,7 +374,7 @@ def _packed_result(cid, out):
     """The result of a case from its packed answer (a list, see :func:`mjccd.ccd.pack_solution`), as
     :func:`solve_case` writes it; None when the answer needs the rational tier (every uncertain one does)."""
     status0, k, _, _, certified = out[:5]
-    if _needs_exact(status0, certified):
+    if needs_exact(status0, certified):
         return None
     k = int(k)
     times = out[PACKED_HEAD:PACKED_HEAD + 2 * k]

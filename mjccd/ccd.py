@@ -1682,7 +1682,7 @@ def _two_pose_call(a, motion_a, b, motion_b, t_max, first_only):
                          b.radii, motion_b._row, t_max, first_only)
 
 
-def _needs_exact(status0, certified):
+def needs_exact(status0, certified):
     """True when a double-precision answer goes on to the rational tier (see :func:`solve_motions`):
     touching at the start, or uncertain (its bracket is refined, or made to hold, in rational arithmetic)."""
     return status0 == 0 or not certified
@@ -2268,7 +2268,7 @@ def first_contact(a, motion_a, b, motion_b, *, t_max=1.0):
         return _contact(solve_motions(a, motion_a, b, motion_b, t_max, True))
     out = _two_pose_call(a, motion_a, b, motion_b, t_max, True)
     status0, k, _, _, certified = out[:5].tolist()
-    if _needs_exact(status0, certified):
+    if needs_exact(status0, certified):
         return _contact(_settled(a, motion_a, b, motion_b, _unpacked(out), True, t_max))
     if status0 != 1:
         return Contact(0.0, None, None, STATUS_NAMES[int(status0)])
@@ -2281,7 +2281,7 @@ def collision_intervals(a, motion_a, b, motion_b):
         return [(float(x), float(y)) for x, y in solve_motions(a, motion_a, b, motion_b).intervals]
     out = _two_pose_call(a, motion_a, b, motion_b, 1.0, False)
     status0, k, _, _, certified = out[:5].tolist()
-    if _needs_exact(status0, certified):
+    if needs_exact(status0, certified):
         out = _settled(a, motion_a, b, motion_b, _unpacked(out), False, 1.0).intervals.ravel()
         return list(zip(out[0::2].tolist(), out[1::2].tolist()))
     times = out[PACKED_HEAD:PACKED_HEAD + 2 * int(k)].tolist()

@@ -112,11 +112,11 @@ def quadric_exact_integer(radii, position, quaternion):
 # ---------------------------------------------------------------- determinants
 
 
-def _det(M):
+def det(M):
     """Determinant by Laplace expansion along the first row (exact; small matrices only)."""
     if len(M) == 1:
         return M[0][0]
-    return sum((-1) ** j * M[0][j] * _det([row[:j] + row[j + 1:] for row in M[1:]])
+    return sum((-1) ** j * M[0][j] * det([row[:j] + row[j + 1:] for row in M[1:]])
                for j in range(len(M)) if M[0][j] != 0)
 
 
@@ -331,7 +331,7 @@ def touching_point_exact(A, B):
     """
     A, B = _integer_matrix(A), _integer_matrix(B)
     # balance the two (a positive factor on either only moves s*): |det A| and |det B| within a factor 16
-    shift = (abs(_det(A)).bit_length() - abs(_det(B)).bit_length()) // 4
+    shift = (abs(det(A)).bit_length() - abs(det(B)).bit_length()) // 4
     if shift > 0:
         B = [[x << shift for x in row] for row in B]
     elif shift < 0:
@@ -368,7 +368,7 @@ def touching_point_exact(A, B):
 
     def cofactor(r, j):
         minor = [[M[i][k] for k in range(4) if k != j] for i in range(4) if i != r]
-        return (-1) ** (r + j) * _det(minor)
+        return (-1) ** (r + j) * det(minor)
 
     r = max(range(4), key=lambda i: abs(cofactor(i, i)))
     X = [cofactor(r, j) for j in range(4)]

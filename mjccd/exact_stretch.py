@@ -17,7 +17,7 @@ from math import comb
 
 import numpy as np
 
-from mjccd.exact import _det
+from mjccd.exact import det
 
 U_CANDIDATES = 4        # the best u of the float search compared exactly
 MAXIMUM_BITS = 60       # the quartic's maxima in u are located to 2^-60 when the float search fails
@@ -34,7 +34,7 @@ def _pencil_det(pair, u):
     """det((1 - u) A + u B), exactly, for ``pair`` = :func:`_integers` (A, B) and the rational u."""
     A, B, scale = pair
     p, q = u.numerator, u.denominator
-    return Fraction(_det([[(q - p) * A[i][j] + p * B[i][j] for j in range(4)] for i in range(4)]), (scale * q) ** 4)
+    return Fraction(det([[(q - p) * A[i][j] + p * B[i][j] for j in range(4)] for i in range(4)]), (scale * q) ** 4)
 
 
 def _best_u(pair):

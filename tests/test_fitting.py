@@ -120,6 +120,37 @@ def test_no_import_cycles_among_mjccd_modules():
         pytest.fail("import cycle: " + "; ".join(steps))
 
 
+def _private_imports(name, path, modules):
+    """``["module:line imports other._name", ...]``: names with a leading underscore that a module imports from
+    another mjccd module (a private module itself, such as ``mjccd._validate``, may be imported, and its public
+    names)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if not isinstance(node, ast.ImportFrom) or not (node.module or "").startswith("mjccd"):
+            continue
+        for alias in node.names:
+            private = alias.name.startswith("_") and not alias.name.startswith("__")
+            if private and f"{node.module}.{alias.name}" not in modules and node.module != name:
+                found.append(f"{name}:{node.lineno} imports {node.module}.{alias.name}")
+    return found
+
+
+def test_no_module_imports_another_modules_private_names():
+    """What a module keeps to itself (a leading underscore) no other module imports: shared names are public."""
+    modules = _modules()
+    modules.update({name: path for name, path in ((".".join(p.relative_to(PACKAGE.parent).with_suffix("").parts), p)
+                                                  for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)})
+    found = [line for name, path in modules.items() for line in _private_imports(name, path, modules)]
+    assert not found, found
+
+
+def test_the_private_import_check_finds_one(tmp_path):
+    path = tmp_path / "user.py"
+    path.write_text("from mjccd.ccd import solve_pair, _secret\nfrom mjccd._validate import array\n")
+    assert _private_imports("mjccd.user", path, {"mjccd.ccd": None, "mjccd._validate": None}) == [
+        "mjccd.user:1 imports mjccd.ccd._secret"]
+
+
 def test_the_cycle_check_finds_a_cycle():
     graph = {"a": {("b", "a.py:1")}, "b": {("c", "b.py:2")}, "c": {("a", "c.py:3")}, "d": set()}
     assert [node for node, _ in _cycle(graph)] == ["a", "b", "c"]

@@ -37,14 +37,14 @@ import numpy as np
 from mjccd.geoms import frames as fr
 from mjccd.geoms import kernel as kn
 from mjccd.geoms import systems as sy
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 FILTERED = 4.0  # out[FAILED] of a pair the filters cleared (no solve; separate, no contact)
 TOO_SLOW = 5.0  # out[FAILED] of a pair whose relative motion stays below its minimum motion (no solve)
 MARGIN = 1e-9   # relative margin of the filters' floating-point tests
 
 
-@_jit
+@jit
 def _rotated(q, vx, vy, vz):
     """(x, y, z) of the vector (vx, vy, vz) rotated by the unit quaternion q [w, x, y, z] (scalars: the filters
     run once per pair and step, and a small array made there costs more than the arithmetic)."""
@@ -55,7 +55,7 @@ def _rotated(q, vx, vy, vz):
     return vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz), vz + w * tz + (x * ty - y * tx)
 
 
-@_jit
+@jit
 def geom_poses_into(xpos, xquat, body, local, out):
     """out (G, 7) = the world poses [x, y, z, qw, qx, qy, qz] of geoms fixed in bodies (body poses xpos (B, 3),
     xquat (B, 4); each geom's body index and its local pose (G, 7))."""
@@ -73,7 +73,7 @@ def geom_poses_into(xpos, xquat, body, local, out):
         out[g, 6] = w * bz + x * by - y * bx + z * bw
 
 
-@_jit
+@jit
 def proxy(kind, size):
     """(axis, half length, radius, reach) of the capsule about a local axis that holds the shape, and the reach
     of its points from its centre."""
@@ -96,7 +96,7 @@ def proxy(kind, size):
     return a, size[a] - b, b, size[a]
 
 
-@_jit
+@jit
 def _gap_at(rx, ry, rz, d0, d1, s, u):
     """|r + s d0 - u d1|: the distance of the segments' points at parameters s and u."""
     dx = rx + s * d0[0] - u * d1[0]
@@ -105,7 +105,7 @@ def _gap_at(rx, ry, rz, d0, d1, s, u):
     return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@_jit
+@jit
 def _segment_distance(p0, d0, p1, d1):
     """Distance between the segments p0 + s d0 and p1 + u d1 (s, u in [-1, 1]; d0, d1 (3,) or 3-tuples)."""
     rx, ry, rz = p0[0] - p1[0], p0[1] - p1[1], p0[2] - p1[2]
@@ -129,13 +129,13 @@ def _segment_distance(p0, d0, p1, d1):
     return best
 
 
-@_jit
+@jit
 def _axis(q, axis, half):
     """(x, y, z): the local axis ``axis`` scaled to ``half``, rotated by q."""
     return _rotated(q, half if axis == 0 else 0.0, half if axis == 1 else 0.0, half if axis == 2 else 0.0)
 
 
-@_jit
+@jit
 def _moves(Q0, Q1, g, reach):
     """How far any point of geom g (``reach`` from its centre) can move in the step: M of the module
     docstring."""
@@ -146,7 +146,7 @@ def _moves(Q0, Q1, g, reach):
     return move + 2.0 * math.sqrt(max(1.0 - min(turn, 1.0) ** 2, 0.0)) * reach
 
 
-@_jit
+@jit
 def relative_motion(kinds, sizes, Q0, Q1, ga, gb):
     """A bound of how far any point of geom ga moves relative to any point of gb in the step (a plane stays
     put)."""
@@ -157,7 +157,7 @@ def relative_motion(kinds, sizes, Q0, Q1, ga, gb):
     return m
 
 
-@_jit
+@jit
 def clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
     """True when geoms ga and gb cannot touch in the step from poses Q0 to Q1 (G, 7), by either filter of the
     module docstring (``scratch``: (SCRATCH_ROWS, 7) floats for the piecewise test)."""
@@ -200,7 +200,7 @@ def clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
     return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch)
 
 
-@_jit
+@jit
 def _lerp_pose(Q0, Q1, g, t, out):
     """out (7,) = geom g's pose at t of its rigid lerp: centre lerp, quaternion lerp the short way, normalised."""
     s = 1.0 if Q0[g, 3] * Q1[g, 3] + Q0[g, 4] * Q1[g, 4] + Q0[g, 5] * Q1[g, 5] + Q0[g, 6] * Q1[g, 6] >= 0.0 \
@@ -216,7 +216,7 @@ def _lerp_pose(Q0, Q1, g, t, out):
         out[3 + i] /= nq
 
 
-@_jit
+@jit
 def _piece_moves(Q0, Q1, g, reach, lo, mid, hi, P):
     """How far any point of geom g moves from its pose P[1] at ``mid`` over [lo, hi] (P[0], P[2] its poses at
     the ends): the centre's share of its straight path, and ``2 sin(theta / 2) reach`` with theta the larger
@@ -234,7 +234,7 @@ MAX_DEPTH = 4  # halvings of the step for the piecewise test (pieces of 1/16 of 
 SCRATCH_ROWS = 6 + 2 * MAX_DEPTH + 2  # the piecewise test's poses at a piece's ends and middle, and its stack
 
 
-@_jit
+@jit
 def _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch):
     """The distance-against-displacement test on pieces of the step, halved down to MAX_DEPTH: the proxies'
     gap at each piece's middle against how far their points move over the piece (pb may be a plane: the
@@ -280,7 +280,7 @@ def _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch):
     return True
 
 
-@_jit
+@jit
 def _row(Q0, Q1, g, origin, rows):
     """The element row of geom g's motion (its pose lerp), seen from ``origin``."""
     rows[0, 0] = fr.POSE
@@ -295,7 +295,7 @@ def _row(Q0, Q1, g, origin, rows):
         rows[0, 11 + i] = s * Q1[g, 3 + i]
 
 
-@_jit
+@jit
 def below_plane(kinds, sizes, Q0, g, p):
     """True when geom g certainly reaches below the plane geom p (the solid z <= 0 of its frame) at the step's
     start by more than a relative MARGIN: its lowest point along the plane's normal n, ``n . (c - o) - h``
@@ -326,7 +326,7 @@ def below_plane(kinds, sizes, Q0, g, p):
     return height - h < -MARGIN * scale
 
 
-@_jit
+@jit
 def cores_overlap(kinds, sizes, Q0, ga, gb):
     """True when two rounded geoms (spheres, capsules) certainly overlap at the step's start: their cores
     (points, segments) lie closer than the sum of their radii by more than a relative MARGIN."""
@@ -338,7 +338,7 @@ def cores_overlap(kinds, sizes, Q0, ga, gb):
     return d < ra + rb - MARGIN * scale
 
 
-@_jit
+@jit
 def _overlapping(o):
     """out row o of a pair in contact at the step's start, decided without a solve."""
     for f in range(kn.OUT):
@@ -348,7 +348,7 @@ def _overlapping(o):
     o[kn.PROVEN] = 1.0
 
 
-@_jit
+@jit
 def _cleared(o, code):
     """out row o of a pair left without a solve: separate, no contact, out[FAILED] = code."""
     for f in range(kn.OUT):
@@ -359,7 +359,7 @@ def _cleared(o, code):
     o[kn.FAILED] = code
 
 
-@_jit
+@jit
 def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_only, W, I, Wdd, Idd, CON, SYS, SYSR,
                N, out):
     """Every geom pair's answer for one step into ``out`` (P, kernel.OUT): pairs the filters clear get
@@ -425,7 +425,7 @@ TALLIES = ("sphere_culled", "too_slow", "solved_exactly", "overlapping_t0", "col
 NEEDS_SOLVER = -2
 
 
-@_jit
+@jit
 def tally(out, new_only, counts):
     """The first contact and the counts of :func:`step_pairs`' answers ``out`` (P, kernel.OUT), read as
     :meth:`mjccd.mujoco.geoms.GeomChecker.check_poses` reads each row: counts (6,) = :data:`TALLIES`; returns

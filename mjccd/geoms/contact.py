@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 from mjccd.geoms.systems import BOX, CAPSULE, CYLINDER, ELLIPSOID, PLANE, SPHERE
 
 FACE, EDGE, VERTEX = 2, 1, 0
@@ -22,7 +22,7 @@ ELEMENT_NAMES = {  # (kind, code) -> name; codes from :func:`element`
 }
 
 
-@_jit
+@jit
 def closest_point(kind, size, y, out):
     """out = the point of the shape (local frame) closest to the local point y (y itself when inside)."""
     if kind == SPHERE or kind == CAPSULE:
@@ -48,7 +48,7 @@ def closest_point(kind, size, y, out):
             out[i] = y[i]
 
 
-@_jit
+@jit
 def element(kind, size, y, tol):
     """(code, quality, n (3,)) of the element of the shape holding its surface point y (local): quality
     FACE (n the outward unit normal), EDGE (n the edge's unit tangent) or VERTEX; code numbers the element

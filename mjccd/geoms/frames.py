@@ -25,7 +25,7 @@ adjugate, which is exact for the forward map as given.
 import numpy as np
 
 from mjccd.geoms import poly as P
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 ELEMENT_FIELDS = 15
 POSE, HINGE, SLIDE = 0, 1, 2
@@ -33,7 +33,7 @@ FRAME = 26
 L0, V0, M0, G0, H0, GW = 0, 9, 12, 13, 22, 25
 
 
-@_jit
+@jit
 def _rotation(W, I, qs, F):
     """F[L0:L0+9] = rot(q) and F[G0:G0+9] = rot(q)^T for the quaternion slots qs (4,); returns |q|^2."""
     w, x, y, z = qs[0], qs[1], qs[2], qs[3]
@@ -61,7 +61,7 @@ def _rotation(W, I, qs, F):
     return P.add(W, I, a, b, 1.0)
 
 
-@_jit
+@jit
 def _element(W, I, row):
     """The frame of one element row."""
     F = np.empty(FRAME, dtype=np.int64)
@@ -107,7 +107,7 @@ def _element(W, I, row):
     return F
 
 
-@_jit
+@jit
 def _compose_block(W, I, F1, F2, Lo, Vo, Mo, out):
     """out[Lo:] etc. = the block product [[L1, v1], [0, m1]] [[L2, v2], [0, m2]] of the blocks at Lo, Vo, Mo."""
     for i in range(3):
@@ -119,7 +119,7 @@ def _compose_block(W, I, F1, F2, Lo, Vo, Mo, out):
     out[Mo] = P.mul(W, I, F1[Mo], F2[Mo])
 
 
-@_jit
+@jit
 def compose(W, I, F1, F2):
     """The frame of ``x = F1(F2(y))``: forward F1 F2, inverse F2^-1 F1^-1."""
     out = np.empty(FRAME, dtype=np.int64)
@@ -128,7 +128,7 @@ def compose(W, I, F1, F2):
     return out
 
 
-@_jit
+@jit
 def chain_frame(W, I, rows):
     """The frame of the element rows (ELEMENT_FIELDS floats each), the first closest to the world."""
     F = _element(W, I, rows[0])
@@ -137,7 +137,7 @@ def chain_frame(W, I, rows):
     return F
 
 
-@_jit
+@jit
 def relative(W, I, Fa, Fb):
     """The map from B's frame into A's, ``Finv_A F_B``, as a frame-shaped array whose forward block (ids 0..12)
     is that map (the inverse block is left unset, -1)."""
@@ -152,7 +152,7 @@ def relative(W, I, Fa, Fb):
     return out
 
 
-@_jit
+@jit
 def rational_frame(W, I, rot, rot_err, rd, rd_err, tr, tr_err, td, td_err):
     """The frame of a rational motion ``x = (rot / rd) y + tr / td`` from Bernstein coefficients (rot (3, 3, n),
     rd (n,), tr (3, k), td (k,)) with bounds of their conversion's errors; the inverse by the
@@ -194,7 +194,7 @@ def rational_frame(W, I, rot, rot_err, rd, rd_err, tr, tr_err, td, td_err):
     return F
 
 
-@_jit
+@jit
 def point(W, I, H, y0, y1, y2):
     """Homogeneous point (4 slots: X, Y, Z, weight) of the local point y under the forward block of H."""
     out = np.empty(4, dtype=np.int64)
@@ -209,7 +209,7 @@ def point(W, I, H, y0, y1, y2):
     return out
 
 
-@_jit
+@jit
 def direction(W, I, H, d0, d1, d2):
     """The local direction d under the forward block of H (3 slots; over the same weight as :func:`point`)."""
     out = np.empty(3, dtype=np.int64)

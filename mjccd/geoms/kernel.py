@@ -15,7 +15,7 @@ from mjccd.geoms import frames as fr
 from mjccd.geoms import poly as P
 from mjccd.geoms import scan as sc
 from mjccd.geoms import systems as sy
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 TIME_TOL = 1e-9             # a first contact is certified when its proven bracket is this narrow
 OUT = 18                    # fields of a pair's answer, see pair_kernel
@@ -24,7 +24,7 @@ STATUS, LO, HI, TIME, CERTIFIED, POINT, NORMAL, ELEM_A, ELEM_B, SYSTEMS, WINNER,
 NOT_HANDLED, OVERFLOW, PARTIAL = 1.0, 2.0, 3.0  # values of out[FAILED]; PARTIAL: the ellipsoid solver adds more
 
 
-@_jit
+@jit
 def _degree(rows):
     """Degree in t of a frame composed of these element rows (forward rotation block)."""
     d = 0
@@ -43,7 +43,7 @@ def _degree(rows):
     return d
 
 
-@_jit
+@jit
 def _transform(W, I, F, t, L, v):
     """L (3, 3), v (3,) of the forward map of frame F at time t: x = L y + v."""
     m = P.value(W, I, F[fr.M0], t)
@@ -53,13 +53,13 @@ def _transform(W, I, F, t, L, v):
         v[i] = P.value(W, I, F[fr.V0 + i], t) / m
 
 
-@_jit
+@jit
 def _unit(x):
     n = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
     return x / n if n > 0.0 else x
 
 
-@_jit
+@jit
 def _witness(W, I, SYS, k, s, t):
     """The winning system's witness at (s, t), in the frame of its side."""
     y = np.empty(3)
@@ -74,7 +74,7 @@ def _witness(W, I, SYS, k, s, t):
     return y
 
 
-@_jit
+@jit
 def _contact(W, I, SYS, SYSR, k, s, t, ka, sa, FA, kb, sb, FB, out):
     """Fill out[POINT], out[NORMAL], out[ELEM_A], out[ELEM_B] from system k's witness at (s, t)."""
     side = SYS[k, 2]
@@ -119,7 +119,7 @@ def _contact(W, I, SYS, SYSR, k, s, t, ka, sa, FA, kb, sb, FB, out):
     out[ELEM_B] = cb
 
 
-@_jit
+@jit
 def _systems_of(W, I, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b):
     """Frames and systems of the pair in the workspace (W, I) and the system store (CON, SYS, SYSR, N), both
     emptied first; returns (FA, FB, C, DS, DT, errs, code) with each constraint's double coefficients C (rows
@@ -135,7 +135,7 @@ def _systems_of(W, I, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b):
     return FA, FB, C, DS, DT, errs, code
 
 
-@_jit
+@jit
 def constraints_of(W, I, CON, N):
     """The store's constraints as arrays: (C, DS, DT, errs), each constraint's double coefficients C (rows in
     s, columns in t, every row elevated to its degree in t), its degrees in s and t and the bound of their
@@ -172,7 +172,7 @@ def constraints_of(W, I, CON, N):
     return C, DS, DT, errs
 
 
-@_jit
+@jit
 def _elevated(W, I, k, n):
     """Slot k elevated to degree n (a sum with a zero of degree n elevates it, with its bounds)."""
     z = P.alloc(W, I, n)
@@ -182,7 +182,7 @@ def _elevated(W, I, k, n):
     return P.add(W, I, k, z, 1.0)
 
 
-@_jit
+@jit
 def status_of_systems(SYS, N, C, DS, DT, errs):
     """The pair's status at t = 0 from its systems: 1 (separate) when each is proven not to hold there, -1
     (overlapping) when one is proven to hold, else 0 (touching: undecided within rounding)."""
@@ -200,7 +200,7 @@ def status_of_systems(SYS, N, C, DS, DT, errs):
     return status0
 
 
-@_jit
+@jit
 def scan_systems(SYS, N, C, DS, DT, errs, t_end, out, decide):
     """Status at t = 0 (with ``decide``; else out[STATUS] = 1 and every system is scanned from 0, the caller
     deciding the start) and first contact over all systems into out (out[PROVEN] = 1 when some time is
@@ -255,7 +255,7 @@ def scan_systems(SYS, N, C, DS, DT, errs, t_end, out, decide):
     return best, best_s
 
 
-@_jit
+@jit
 def _bstatus_at_start(C, DS, DT, errs):
     """As :func:`mjccd.geoms.scan.status_at_start` for bivariate constraints at t = 0: whether some s in [0, 1]
     satisfies them all, decided by the univariate scan over s of their values at t = 0."""
@@ -273,7 +273,7 @@ def _bstatus_at_start(C, DS, DT, errs):
     return -1 if hi >= 0.0 else 0
 
 
-@_jit
+@jit
 def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
     """First contact over [0, t_end] of shape ka (size sa (3,), motion rows_a (n, ELEMENT_FIELDS)) and shape kb.
 
@@ -313,7 +313,7 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
 MAX_RUNS = 64
 
 
-@_jit
+@jit
 def merge_runs(R, n, t_end, out):
     """Merge runs (rows enter_lo, enter_hi, exit_lo, exit_hi, proven) of several systems into the pair's
     intervals of contact: rows (t_in, t_out, in_lo, in_hi, out_lo, out_hi, proven) in ``out``; returns (count,
@@ -357,7 +357,7 @@ def merge_runs(R, n, t_end, out):
     return m, certified
 
 
-@_jit
+@jit
 def pair_runs(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
     """Every interval of [0, t_end] in which the pair is in contact (touching or overlapping), as rows of
     :func:`merge_runs` in ``out`` (MAX_RUNS, 7).  Returns (count, certified, status at t = 0, code): code as

@@ -92,7 +92,7 @@ from mjccd.geoms import kernel as kn
 from mjccd.geoms import poly as P
 from mjccd.geoms import scan as sc
 from mjccd.geoms import systems as sy
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 TIME_TOL = kn.TIME_TOL
 STATUS_NAMES = {1: "separate", 0: "touching", -1: "overlapping"}
@@ -328,7 +328,7 @@ def _ellipse(e, field):
 # ---------------------------------------------------------------- kernels (numba)
 
 
-@_jit
+@jit
 def _load(W, I, M, D):
     """Slots holding packed polynomials (see :func:`mjccd.geoms.exact.packed`): hi and its bound in doubles, hi + lo and its
     bound in double-double."""
@@ -348,7 +348,7 @@ def _load(W, I, M, D):
     return out
 
 
-@_jit
+@jit
 def _relative(W, I, MA, MB):
     """adj(M_A) M_B: B's frame into A's, homogeneous (slots h00, h01, h10, h11, t0, t1, weight):
     [[w_A adj(L_A) L_B, adj(L_A)(w_A v_B - w_B v_A)], [0, 0, det(L_A) w_B]]."""
@@ -369,7 +369,7 @@ def _relative(W, I, MA, MB):
     return H
 
 
-@_jit
+@jit
 def _window_row(W, I, R, s0, s1):
     """The rows R (3 slots: a quadratic's Bernstein coefficients in s) restricted to [s0, s1] (de Casteljau's
     blossom; the weights are exact for dyadic s0, s1 of up to 26 bits)."""
@@ -387,7 +387,7 @@ def _window_row(W, I, R, s0, s1):
     return out
 
 
-@_jit
+@jit
 def _boundary_in(W, I, CON, SYS, SYSR, N, H, ra, rb, qa, qb, kinds, c0, c1, s0, s1):
     """The bivariate systems 'a point of the boundary of the disk (semi-axes ra, rb), mapped by H, lies in the
     disk of semi-axes qa, qb', one per chart c0 <= chart < c1 of the boundary (kinds CHART0, CHART1), each
@@ -422,7 +422,7 @@ def _boundary_in(W, I, CON, SYS, SYSR, N, H, ra, rb, qa, qb, kinds, c0, c1, s0, 
             kinds[N[1] - 1] = chart
 
 
-@_jit
+@jit
 def _centre_in(W, I, CON, SYS, SYSR, N, H, qa, qb, kinds):
     """The system 'the centre of the disk mapped by H lies in the disk of semi-axes qa, qb' (kind CENTRE)."""
     x = P.frac(W, I, H[4], 1.0, qa)
@@ -439,7 +439,7 @@ def _centre_in(W, I, CON, SYS, SYSR, N, H, qa, qb, kinds):
         kinds[N[1] - 1] = CENTRE
 
 
-@_jit
+@jit
 def _planar_systems(W, I, CON, SYS, SYSR, N, MA, DA, ax_a, MB, DB, ax_b, kinds):
     """The pair's systems in an emptied workspace and store: B's boundary in A (two charts), A's centre in B."""
     P.reset(W, I)
@@ -451,7 +451,7 @@ def _planar_systems(W, I, CON, SYS, SYSR, N, MA, DA, ax_a, MB, DB, ax_b, kinds):
     _centre_in(W, I, CON, SYS, SYSR, N, _relative(W, I, B, A), ax_b[0], ax_b[1], kinds)
 
 
-@_jit
+@jit
 def _extract(W, I, CON, N):
     """:func:`mjccd.geoms.kernel.constraints_of` and ok, False when the workspace or the store overflowed (then no
     constraint)."""
@@ -460,7 +460,7 @@ def _extract(W, I, CON, N):
     return C, DS, DT, errs, ok
 
 
-@_jit
+@jit
 def _runs(SYS, N, C, DS, DT, errs, t_end, out):
     """Every interval of [0, t_end] in which some system may hold, merged (rows of
     :func:`mjccd.geoms.kernel.merge_runs`); returns (count, certified, status at t = 0)."""
@@ -483,7 +483,7 @@ def _runs(SYS, N, C, DS, DT, errs, t_end, out):
 
 
 
-@_jit
+@jit
 def planar_kernel(MA, DA, ax_a, MB, DB, ax_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, kinds, out):
     """First contact over [0, t_end] of the disks (semi-axes ax_a, ax_b) under the packed motions (MA, DA),
     (MB, DB): doubles first, double-double when the bracket is wider than TIME_TOL.  out (OUTP,): the fields
@@ -508,7 +508,7 @@ def planar_kernel(MA, DA, ax_a, MB, DB, ax_b, t_end, W, I, Wdd, Idd, CON, SYS, S
             return
 
 
-@_jit
+@jit
 def planar_runs(MA, DA, ax_a, MB, DB, ax_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, kinds, out):
     """Every interval of contact (rows of :func:`mjccd.geoms.kernel.merge_runs` in out (MAX_RUNS, 7)); returns
     (count, certified, status at t = 0, ok), doubles first and double-double when not certified."""
@@ -525,7 +525,7 @@ def planar_runs(MA, DA, ax_a, MB, DB, ax_b, t_end, W, I, Wdd, Idd, CON, SYS, SYS
     return count, certified, status0, True
 
 
-@_jit
+@jit
 def planar_window(MA, DA, ax_a, MB, DB, ax_b, chart, s0, s1, W, I, CON, SYS, SYSR, N, kinds, res):
     """One system on the (reparametrised) time of the packed motions: chart 0 or 1 of B's boundary restricted
     to s in [s0, s1] in A, or (chart -1) A's centre in B.  res = (lo, hi, estimate, band_end, s, ok) as

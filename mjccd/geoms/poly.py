@@ -32,8 +32,9 @@ import math
 import numba
 import numpy as np
 
-# compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function)
-_jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
+# the geoms kernels' one jit configuration (imported by every geoms module and geoms mode's step): compiled on
+# first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function)
+jit = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=False)
 # small helpers inlined by LLVM into their callers
 _inline = numba.njit(cache=True, nogil=True, no_cfunc_wrapper=True, forceinline=True)
 
@@ -66,7 +67,7 @@ def workspace(slots, degree, double_double=False):
     return W, I
 
 
-@_jit
+@jit
 def reset(W, I):
     """Empty the workspace for the next query."""
     I[-1, 0] = 1
@@ -145,7 +146,7 @@ def alloc(W, I, degree):
     return k
 
 
-@_jit
+@jit
 def failed(I):
     """True once an allocation has failed: every polynomial formed since is meaningless."""
     return I[-1, 1] != 0
@@ -157,7 +158,7 @@ def _coef(W, k, i):
     return W[k, 0, i] + W[k, 2, i] if W.shape[1] == 3 else W[k, 0, i]
 
 
-@_jit
+@jit
 def const(W, I, value):
     """The constant ``value`` (exact)."""
     k = alloc(W, I, 0)
@@ -168,7 +169,7 @@ def const(W, I, value):
     return k
 
 
-@_jit
+@jit
 def linear(W, I, v0, v1):
     """(1 - t) v0 + t v1 (exact: its Bernstein coefficients are v0, v1)."""
     if v0 == v1:
@@ -181,7 +182,7 @@ def linear(W, I, v0, v1):
     return k
 
 
-@_jit
+@jit
 def from_coefficients(W, I, c, e):
     """A slot holding Bernstein coefficients ``c`` whose errors are bounded by ``e``."""
     k = alloc(W, I, c.shape[0] - 1)
@@ -219,7 +220,7 @@ def _elevate_into(W, a, m, n, dst):
             W[dst, 1, i] = (err + u4 * mag) * UP
 
 
-@_jit
+@jit
 def add(W, I, a, b, sb):
     """a + sb * b (sb an exact double: 1.0, -1.0 or any scale), elevating the lower degree."""
     ma, mb = I[a, 0], I[b, 0]
@@ -254,7 +255,7 @@ def add(W, I, a, b, sb):
     return k
 
 
-@_jit
+@jit
 def scale(W, I, a, s):
     """s * a for an exact double s."""
     n = I[a, 0]
@@ -275,7 +276,7 @@ def scale(W, I, a, s):
     return k
 
 
-@_jit
+@jit
 def frac(W, I, a, num, den):
     """a * num / den for exact doubles num and den (two roundings)."""
     n = I[a, 0]
@@ -293,7 +294,7 @@ def frac(W, I, a, num, den):
     return k
 
 
-@_jit
+@jit
 def mul(W, I, a, b):
     """a * b (degree m + n), as a convolution in the scaled Bernstein basis: term (i, j) is
     (a_i C(m, i)) (b_j C(n, j)), three roundings (four where a binomial is itself rounded); the terms of one
@@ -342,19 +343,19 @@ def mul(W, I, a, b):
     return k
 
 
-@_jit
+@jit
 def sq(W, I, a):
     """a * a."""
     return mul(W, I, a, a)
 
 
-@_jit
+@jit
 def dot3(W, I, x0, x1, x2, y0, y1, y2):
     """x0 y0 + x1 y1 + x2 y2."""
     return add(W, I, add(W, I, mul(W, I, x0, y0), mul(W, I, x1, y1), 1.0), mul(W, I, x2, y2), 1.0)
 
 
-@_jit
+@jit
 def coefficients_into(W, I, k, out):
     """out[:n+1] = slot k's coefficients as doubles (hi + lo rounded once in a double-double workspace)."""
     n = I[k, 0]
@@ -362,7 +363,7 @@ def coefficients_into(W, I, k, out):
         out[i] = _coef(W, k, i)
 
 
-@_jit
+@jit
 def error(W, I, k):
     """A bound of |computed - exact| of slot k (as its double coefficients) at every t in [0, 1], also after the
     scanners restrict it to a piece or evaluate it: the largest bound of a coefficient (plus, in double-double,
@@ -379,7 +380,7 @@ def error(W, I, k):
     return (e + gamma(10 * n + 8) * (c + e)) * (1.0 + 1e-9)
 
 
-@_jit
+@jit
 def is_zero(W, I, k):
     """True when slot k is exactly the zero polynomial (every coefficient and bound 0)."""
     for i in range(I[k, 0] + 1):
@@ -388,7 +389,7 @@ def is_zero(W, I, k):
     return True
 
 
-@_jit
+@jit
 def value(W, I, k, t):
     """Value of slot k at t (Horner in t / (1 - t), as :func:`mjccd.bernstein.evaluate_row`)."""
     n = I[k, 0]
@@ -405,7 +406,7 @@ def value(W, I, k, t):
 # ---------------------------------------------------------------- bivariate: rows of slots
 
 
-@_jit
+@jit
 def bmul(W, I, a, b):
     """Product of two bivariate polynomials given as row arrays (degree in s: len - 1 each), in the scaled
     Bernstein basis: each product of rows times C(m, i) C(n, j) (an exact integer), the sums divided by
@@ -422,7 +423,7 @@ def bmul(W, I, a, b):
     return out
 
 
-@_jit
+@jit
 def belevate(W, I, a, d):
     """A bivariate polynomial elevated to degree d in s."""
     out = a.copy()
@@ -437,7 +438,7 @@ def belevate(W, I, a, d):
     return out
 
 
-@_jit
+@jit
 def badd(W, I, a, b, sb):
     """a + sb * b for bivariate polynomials (row arrays), elevating in s to the higher degree."""
     d = max(a.shape[0], b.shape[0]) - 1
@@ -449,7 +450,7 @@ def badd(W, I, a, b, sb):
     return out
 
 
-@_jit
+@jit
 def bscale_t(W, I, a, p):
     """The bivariate ``a`` times the univariate polynomial (slot) ``p`` in t."""
     out = np.empty(a.shape[0], dtype=np.int64)

@@ -24,7 +24,7 @@ rounding allows; nothing is ever guessed.
 import numpy as np
 
 from mjccd.geoms import poly as P
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 LEAF = 2.0 ** -46       # narrower undecided pieces are not split further
 MAX_PIECES = 2000       # pieces examined per system; past it the rest stays undecided
@@ -33,7 +33,7 @@ EPS = P.EPS
 SHRINK = 0.8            # clip again while a clip keeps less than this share of the piece
 
 
-@_jit
+@jit
 def _restrict_coefficients(c, out, a, b):
     """out = the coefficients ``c`` (as many as ``out`` holds) on a piece that contains [a, b]: its left end is
     moved left by the rounding of a / b, so that nothing proven on it misses a sliver of [a, b].  Returns the
@@ -55,7 +55,7 @@ def _restrict_coefficients(c, out, a, b):
     return left
 
 
-@_jit
+@jit
 def _sublevel(c, thr, hull):
     """The interval [alpha, beta] of x in [0, 1] where the lower convex hull of the points (i / n, c[i]) is at
     most ``thr``; (2, -1) when it is nowhere.  ``hull``: int scratch of length n + 1."""
@@ -90,7 +90,7 @@ def _sublevel(c, thr, hull):
     return lo / n, hi / n
 
 
-@_jit
+@jit
 def _value_slope(c, t):
     """p(t) and p'(t) of the Bernstein coefficients c (one Horner pass in t / (1 - t))."""
     n = c.shape[0] - 1
@@ -108,7 +108,7 @@ def _value_slope(c, t):
     return acc * far ** n, -slope if flip else slope
 
 
-@_jit
+@jit
 def _root_between(c, a, b):
     """A zero of the polynomial c (on [0, 1]) between a and b where its values differ in sign (safeguarded
     Newton)."""
@@ -133,7 +133,7 @@ def _root_between(c, a, b):
     return x
 
 
-@_jit
+@jit
 def holds_at(C, D, errs, t):
     """1 when every constraint is proven < 0 at t, -1 when one is proven > 0, else 0."""
     verdict = 1
@@ -149,7 +149,7 @@ def holds_at(C, D, errs, t):
 FORCED = 1 << 62        # a piece marked so is a band around a computed root: a leaf unless proven either way
 
 
-@_jit
+@jit
 def _examine_piece(C, D, errs, a, b, mask, buf, hull):
     """One look at the piece [a, b]: each constraint not yet proven negative on it (bit j of ``mask`` clear)
     restricted to it (into ``buf``).  Returns (undecided, mask, which, alpha, beta, left): undecided -1 when
@@ -181,7 +181,7 @@ def _examine_piece(C, D, errs, a, b, mask, buf, hull):
     return undecided, mask, which, alpha, beta, left
 
 
-@_jit
+@jit
 def _split_piece(C, D, errs, a, b, mask, undecided, which, entering_only, sa, sb, sm, top):
     """Push the parts of the undecided piece [a, b] on the stack (sa, sb, sm; returns its new top): around the
     computed root of its one undecided constraint when that one changes sign across the piece (only from
@@ -212,7 +212,7 @@ def _split_piece(C, D, errs, a, b, mask, undecided, which, entering_only, sa, sb
     return top + 2
 
 
-@_jit
+@jit
 def first_time(C, D, errs, t_end):
     """The first time in [0, t_end] at which every constraint (coefficients C, degrees D, bounds errs) is <= 0.
 
@@ -281,7 +281,7 @@ def first_time(C, D, errs, t_end):
     return lo, hi, est, band_end
 
 
-@_jit
+@jit
 def status_at_start(C, errs):
     """1: some constraint is proven > 0 at t = 0 (the system does not hold); -1: all are proven < 0; 0:
     undecided (a touch within rounding)."""
@@ -302,7 +302,7 @@ HEAP = 4096
 LEAF_S = 2.0 ** -30   # narrower boxes in s are not split in s
 
 
-@_jit
+@jit
 def _restrict2(c, ds, nt, s0, s1, t0, t1, out, col):
     """out[:ds+1, :nt+1] = the bivariate coefficients c (rows in s, columns in t) on a box containing
     [s0, s1] x [t0, t1] (``col``: scratch of ds + 1); returns the box's real lower corner (s, t)."""
@@ -320,7 +320,7 @@ def _restrict2(c, ds, nt, s0, s1, t0, t1, out, col):
     return sl, tl
 
 
-@_jit
+@jit
 def _bvalue(c, ds, nt, s, t):
     """Value of the bivariate coefficients at (s, t)."""
     col = np.empty(ds + 1)
@@ -330,7 +330,7 @@ def _bvalue(c, ds, nt, s, t):
     return v
 
 
-@_jit
+@jit
 def bholds_at(C, DS, DT, errs, s, t):
     """1 when every bivariate constraint is proven < 0 at (s, t), -1 when one is proven > 0, else 0."""
     verdict = 1
@@ -343,7 +343,7 @@ def bholds_at(C, DS, DT, errs, s, t):
     return verdict
 
 
-@_jit
+@jit
 def _box_scratch(C, DS, DT):
     """Scratch arrays of the bivariate scans: (buf, scol, env, hull, clip) for :func:`_examine`."""
     ds_max, nt_max = 0, 0
@@ -354,13 +354,13 @@ def _box_scratch(C, DS, DT):
             np.empty(max(ds_max, nt_max) + 1, dtype=np.int64), np.empty(4))
 
 
-@_jit
+@jit
 def _heap():
     """An empty heap of boxes (s0, s1, t0, t1, mask; see :func:`_push`)."""
     return np.empty(HEAP), np.empty(HEAP), np.empty(HEAP), np.empty(HEAP), np.empty(HEAP, dtype=np.int64)
 
 
-@_jit
+@jit
 def _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask):
     """Push a box on the binary min-heap keyed by t0; returns the new size (unchanged when full)."""
     if n >= hs0.shape[0]:
@@ -380,7 +380,7 @@ def _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask):
     return n + 1
 
 
-@_jit
+@jit
 def _pop(hs0, hs1, ht0, ht1, hm, n):
     """Remove the root of the heap (moved into the last place, whose index is returned as the new size)."""
     last = n - 1
@@ -408,7 +408,7 @@ def _pop(hs0, hs1, ht0, ht1, hm, n):
     return last
 
 
-@_jit
+@jit
 def _examine(C, DS, DT, errs, s0, s1, t0, t1, mask, buf, scol, env, hull, clip):
     """One look at the box [s0, s1] x [t0, t1]: each constraint not yet proven negative on it (bit j of ``mask``
     clear) restricted to it (into ``buf``).  Returns (undecided, mask): undecided -1 when some constraint is
@@ -462,13 +462,13 @@ def _examine(C, DS, DT, errs, s0, s1, t0, t1, mask, buf, scol, env, hull, clip):
     return undecided, mask
 
 
-@_jit
+@jit
 def _shrunk(clip, s0, s1, t0, t1):
     """Whether the clip keeps less than SHRINK of the box along one side (worth clipping again)."""
     return (clip[1] - clip[0]) < SHRINK * (t1 - t0) or (clip[3] - clip[2]) < SHRINK * (s1 - s0)
 
 
-@_jit
+@jit
 def _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf):
     """Push the two halves of a box: in s when the undecided constraints' coefficients (``buf``) vary more along
     s than along t (the envelope over s is what keeps the box from being clipped away) or the box is a leaf
@@ -497,7 +497,7 @@ def _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf):
     return _push(hs0, hs1, ht0, ht1, hm, n, s0, s1, tm, t1, mask)
 
 
-@_jit
+@jit
 def _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1):
     """A clipped box, except along a side where rounding left the clip inverted (on boxes as narrow as the
     rounding of their own ends): there the box keeps its extent, so that nothing is lost and no box is pushed
@@ -509,7 +509,7 @@ def _unless_inverted(nt0, nt1, t0, t1, ns0, ns1, s0, s1):
     return nt0, nt1, ns0, ns1
 
 
-@_jit
+@jit
 def _point_proof(C, DS, DT, errs, s, t0, t1):
     """A time in [t0, t1] at which every constraint is proven < 0 at this s, placed past the root in t of the
     constraint largest at t1's left end (found by Newton on the univariate restriction to this s); -1 when
@@ -550,7 +550,7 @@ def _point_proof(C, DS, DT, errs, s, t0, t1):
     return -1.0
 
 
-@_jit
+@jit
 def bfirst_time(C, DS, DT, errs, t_end, max_boxes=MAX_BOXES):
     """The first time in [0, t_end] at which some s in [0, 1] makes every bivariate constraint <= 0, examining at
     most about ``max_boxes`` boxes (the rest stays undecided).
@@ -632,7 +632,7 @@ RUN_FIELDS = 5              # enter_lo, enter_hi, exit_lo, exit_hi, proven (1: s
 MAX_SEGMENTS = 4096
 
 
-@_jit
+@jit
 def _emit(seg, nseg, a, b, label):
     """Append the piece [a, b] with its label, merging it into the previous one when they agree."""
     if b < a:
@@ -648,7 +648,7 @@ def _emit(seg, nseg, a, b, label):
     return nseg + 1
 
 
-@_jit
+@jit
 def runs_of(seg, nseg, t_end, out):
     """Runs of time not proven free (rows of ``out``, RUN_FIELDS each) from labelled pieces in time order;
     returns their number."""
@@ -679,7 +679,7 @@ def runs_of(seg, nseg, t_end, out):
     return n
 
 
-@_jit
+@jit
 def all_runs(C, D, errs, t_end, out):
     """Every run of time in [0, t_end] in which the univariate system may hold, as :func:`runs_of` rows; pieces
     are clipped, split around the roots of a lone undecided constraint (entering or leaving) and halved, as in
@@ -732,7 +732,7 @@ def all_runs(C, D, errs, t_end, out):
     return runs_of(seg, nseg, t_end, out)
 
 
-@_jit
+@jit
 def _covered(cov, ncov, t0, t1):
     """True when [t0, t1] lies in one of the intervals cov[:ncov] (times proven to hold)."""
     for q in range(ncov):
@@ -741,7 +741,7 @@ def _covered(cov, ncov, t0, t1):
     return False
 
 
-@_jit
+@jit
 def _cover(cov, ncov, t0, t1):
     """Add [t0, t1] to the intervals proven to hold (merged with those it meets)."""
     for q in range(ncov):
@@ -755,7 +755,7 @@ def _cover(cov, ncov, t0, t1):
     return ncov
 
 
-@_jit
+@jit
 def _holds_along(C, DS, DT, errs, s, t0, t1):
     """True when every bivariate constraint, taken at this s, is proven < 0 on all of [t0, t1] (its Bernstein
     coefficients in t there below minus its bound)."""
@@ -777,7 +777,7 @@ def _holds_along(C, DS, DT, errs, s, t0, t1):
     return True
 
 
-@_jit
+@jit
 def ball_runs(C, DS, DT, errs, t_end, out):
     """Every run of time in [0, t_end] in which some s in [0, 1] may satisfy the bivariate system, as
     :func:`runs_of` rows.  Boxes as in :func:`bfirst_time`, all of them, except those whose times are already

@@ -75,7 +75,7 @@ from mjccd.geoms import kernel as kn
 from mjccd.geoms import planar as pl
 from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 from mjccd.geoms.solve import motion_rows, shifted_rows
 
 TIME_TOL = kn.TIME_TOL
@@ -99,7 +99,7 @@ class Disk:
 # ---------------------------------------------------------------- kernels (numba)
 
 
-@_jit
+@jit
 def _rim_in(W, I, CON, SYS, SYSR, N, H, a, b, qa, qb, kinds, kind0):
     """The two systems 'an end of the chord that the other disk's plane cuts from this disk (semi-axes a, b)
     lies in the other disk (semi-axes qa, qb)'; H maps this disk's frame into the other's."""
@@ -141,7 +141,7 @@ def _rim_in(W, I, CON, SYS, SYSR, N, H, a, b, qa, qb, kinds, kind0):
             kinds[N[1] - 1] = kind0 + k
 
 
-@_jit
+@jit
 def _spatial_systems(W, I, CON, SYS, SYSR, N, rows_a, ax_a, rows_b, ax_b, kinds):
     P.reset(W, I)
     N[0] = N[1] = N[2] = 0
@@ -151,7 +151,7 @@ def _spatial_systems(W, I, CON, SYS, SYSR, N, rows_a, ax_a, rows_b, ax_b, kinds)
     _rim_in(W, I, CON, SYS, SYSR, N, fr.relative(W, I, FA, FB), ax_b[0], ax_b[1], ax_a[0], ax_a[1], kinds, 2)
 
 
-@_jit
+@jit
 def spatial_kernel(rows_a, ax_a, rows_b, ax_b, t_end, decide, W, I, Wdd, Idd, CON, SYS, SYSR, N, kinds, out):
     """First contact over [0, t_end] of two disks (semi-axes ax_a, ax_b) under element rows: doubles, then
     double-double when the bracket is wider than TIME_TOL.  ``decide``: decide the status at t = 0 from the
@@ -175,7 +175,7 @@ def spatial_kernel(rows_a, ax_a, rows_b, ax_b, t_end, decide, W, I, Wdd, Idd, CO
             return
 
 
-@_jit
+@jit
 def spatial_window(HBA, DBA, HAB, DAB, ax_a, ax_b, W, I, CON, SYS, SYSR, N, kinds, out):
     """The four systems from the two relative maps given as packed polynomials (13 each: L row-major, v, m, on
     a window of time reparametrised to [0, 1]), scanned from 0 without a status decision (out as

@@ -38,7 +38,7 @@ import numpy as np
 
 from mjccd.geoms import frames as fr
 from mjccd.geoms import poly as P
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 
 SPHERE, CAPSULE, CYLINDER, BOX, ELLIPSOID, PLANE = 0, 1, 2, 3, 4, 5
 KIND_NAMES = ("sphere", "capsule", "cylinder", "box", "ellipsoid", "plane")
@@ -59,7 +59,7 @@ def new_store(max_systems, max_constraints):
             np.zeros(max_systems), np.zeros(3, dtype=np.int64))
 
 
-@_jit
+@jit
 def _con(CON, N, slot):
     """Append the univariate constraint ``slot <= 0``."""
     if N[0] >= CON.shape[0]:
@@ -70,7 +70,7 @@ def _con(CON, N, slot):
     N[0] += 1
 
 
-@_jit
+@jit
 def _bcon(CON, N, rows):
     """Append the bivariate constraint given by its rows (one slot per Bernstein coefficient in s)."""
     if N[0] >= CON.shape[0]:
@@ -82,7 +82,7 @@ def _bcon(CON, N, rows):
     N[0] += 1
 
 
-@_jit
+@jit
 def _close(SYS, SYSR, N, start, side, wit, r_w):
     """Close the system of the constraints appended since ``start``; its witness: homogeneous point ``wit``
     (4 slots, univariate) in the frame of its side."""
@@ -97,7 +97,7 @@ def _close(SYS, SYSR, N, start, side, wit, r_w):
     N[1] += 1
 
 
-@_jit
+@jit
 def _bclose(SYS, SYSR, N, start, side, wit, r_w):
     """As :func:`_close` for a bivariate witness ``wit`` (4, ds + 1) of row slots."""
     if N[1] >= SYS.shape[0] or N[2]:
@@ -116,7 +116,7 @@ def _bclose(SYS, SYSR, N, start, side, wit, r_w):
 # ---------------------------------------------------------------- forms on homogeneous points
 
 
-@_jit
+@jit
 def _positive(W, I, k):
     """True when slot k is proven > 0 on all of [0, 1] (a constraint that can never hold)."""
     e = P.error(W, I, k)
@@ -126,7 +126,7 @@ def _positive(W, I, k):
     return True
 
 
-@_jit
+@jit
 def _lin(W, I, pt, row):
     """a . X - (c1 + c2 + c3) Xw for the homogeneous point ``pt`` (4 slots) and the constraint ``row``."""
     acc = -1
@@ -140,7 +140,7 @@ def _lin(W, I, pt, row):
     return acc if acc >= 0 else P.const(W, I, 0.0)
 
 
-@_jit
+@jit
 def _radius_times(W, I, w, prm):
     """(R1 + R2 + R3) w for the radius terms prm[4:7]."""
     acc = -1
@@ -151,7 +151,7 @@ def _radius_times(W, I, w, prm):
     return acc if acc >= 0 else P.const(W, I, 0.0)
 
 
-@_jit
+@jit
 def _bilinear(W, I, qk, prm, U, V):
     """The symmetric bilinear form of the piece's quadric on homogeneous points U, V (4 slots each): ball
     ``(U - e Uw).(V - e Vw) - R^2 Uw Vw``, cylinder about axis prm[0] through e (the other two coordinates),
@@ -173,7 +173,7 @@ def _bilinear(W, I, qk, prm, U, V):
     return P.add(W, I, acc, P.mul(W, I, _radius_times(W, I, U[3], prm), _radius_times(W, I, V[3], prm)), -1.0)
 
 
-@_jit
+@jit
 def _tangency(W, I, qk, qp, p0, d):
     """alpha gamma - beta^2 of the quadric along the segment p0 + s d (d of weight 0), written by Lagrange's
     identity as |u x d|^2 - R^2 w^2 |d|^2 (u = p0 - e w, in the quadric's own metric): the same polynomial,
@@ -203,7 +203,7 @@ def _tangency(W, I, qk, qp, p0, d):
     return P.add(W, I, cross2, P.mul(W, I, P.sq(W, I, rw), d2), -1.0)
 
 
-@_jit
+@jit
 def _combine(W, I, a, U, b, V):
     """The homogeneous point a U + b V for slots a, b (4 slots each way)."""
     out = np.empty(4, dtype=np.int64)
@@ -215,14 +215,14 @@ def _combine(W, I, a, U, b, V):
 # ---------------------------------------------------------------- pieces
 
 
-@_jit
+@jit
 def new_pieces(n):
     """Arrays of n convex pieces: quadric kind, its parameters, linear constraints and their count."""
     return (np.zeros(n, dtype=np.int64), np.zeros((n, QPRM)), np.zeros((n, MAXLIN, LIN)),
             np.zeros(n, dtype=np.int64), np.zeros(1, dtype=np.int64))
 
 
-@_jit
+@jit
 def _piece(PQ, PP, PL, PN, cnt, qk, axis, e0, e1, e2, R1, R2, R3):
     k = cnt[0]
     cnt[0] += 1
@@ -233,7 +233,7 @@ def _piece(PQ, PP, PL, PN, cnt, qk, axis, e0, e1, e2, R1, R2, R3):
     return k
 
 
-@_jit
+@jit
 def _bound(PL, PN, k, i, sign, c1, c2, c3):
     """Add sign * x_i <= c1 + c2 + c3 to piece k."""
     r = PN[k]
@@ -244,7 +244,7 @@ def _bound(PL, PN, k, i, sign, c1, c2, c3):
     PL[k, r, 3], PL[k, r, 4], PL[k, r, 5] = c1, c2, c3
 
 
-@_jit
+@jit
 def solid_pieces(kind, size, R1, R2):
     """The convex pieces whose union is the shape ``kind`` (core for a sphere or capsule) inflated by
     R1 + R2; tori are not pieces (a rounded cylinder's rims are handled apart)."""
@@ -304,7 +304,7 @@ def solid_pieces(kind, size, R1, R2):
 # ---------------------------------------------------------------- candidates
 
 
-@_jit
+@jit
 def point_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
     """The system 'the homogeneous point pt lies in the piece'."""
     lv = np.empty(MAXLIN, dtype=np.int64)
@@ -325,13 +325,13 @@ def point_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
     _close(SYS, SYSR, N, start, side, pt, r_w)
 
 
-@_jit
+@jit
 def _may_be_negative(W, I, k):
     """False when slot k is proven > 0 everywhere (so ``k <= 0`` never holds)."""
     return not _positive(W, I, k)
 
 
-@_jit
+@jit
 def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, dv, qk, qp, lins, nlin, side, r_w, ends, crossings):
     """The systems 'the segment [p0, p1] (homogeneous points of one weight; ``dv`` = p1 - p0, 3 slots, as
     mapped from the local direction) meets the piece': its end points (with ``ends``), the vertex of the
@@ -417,7 +417,7 @@ def segment_in_piece(W, I, CON, SYS, SYSR, N, p0, p1, dv, qk, qp, lins, nlin, si
             _close(SYS, SYSR, N, start, side, wit, r_w)
 
 
-@_jit
+@jit
 def point_in_torus(W, I, CON, SYS, SYSR, N, pt, rc, zc, R1, R2, side, r_w):
     """The systems 'pt lies within R1 + R2 of the circle of radius rc about the z axis at height zc':
     K <= 0, or K^2 <= 4 rc^2 rho^2, with K = rho^2 + (z - zc)^2 + rc^2 - R^2 (homogeneous)."""
@@ -440,13 +440,13 @@ def point_in_torus(W, I, CON, SYS, SYSR, N, pt, rc, zc, R1, R2, side, r_w):
 # ---------------------------------------------------------------- shape pairs
 
 
-@_jit
+@jit
 def rounded(kind):
     """True for the shapes that are a core (point, segment) rounded by a radius: sphere and capsule."""
     return kind == SPHERE or kind == CAPSULE
 
 
-@_jit
+@jit
 def _core_points(W, I, kind, size, H):
     """The core of a rounded shape under the map H: one point (sphere) or the two ends of the segment."""
     if kind == SPHERE:
@@ -459,13 +459,13 @@ def _core_points(W, I, kind, size, H):
     return pts
 
 
-@_jit
+@jit
 def _box_corner(size, v):
     """Local coordinates of the box vertex number v (bits: sign of x, y, z)."""
     return (size[0] if v & 1 else -size[0]), (size[1] if v & 2 else -size[1]), (size[2] if v & 4 else -size[2])
 
 
-@_jit
+@jit
 def _box_vertices(W, I, size, H):
     out = np.empty((8, 4), dtype=np.int64)
     for v in range(8):
@@ -474,7 +474,7 @@ def _box_vertices(W, I, size, H):
     return out
 
 
-@_jit
+@jit
 def _points_in_solid(W, I, CON, SYS, SYSR, N, pts, kind, size, R1, R2, side, r_w):
     """Each point of ``pts`` against the solid ``kind`` inflated by R1 + R2 (rims of a rounded cylinder
     included)."""
@@ -487,7 +487,7 @@ def _points_in_solid(W, I, CON, SYS, SYSR, N, pts, kind, size, R1, R2, side, r_w
                 point_in_torus(W, I, CON, SYS, SYSR, N, pts[m], size[0], zc, R1, R2, side, r_w)
 
 
-@_jit
+@jit
 def _segment_in_solid(W, I, CON, SYS, SYSR, N, p0, p1, dv, kind, size, R1, R2, side, r_w, ends, crossings):
     PQ, PP, PL, PN, npc = solid_pieces(kind, size, R1, R2)
     for k in range(npc):
@@ -495,7 +495,7 @@ def _segment_in_solid(W, I, CON, SYS, SYSR, N, p0, p1, dv, kind, size, R1, R2, s
                          crossings)
 
 
-@_jit
+@jit
 def _plane_rims(W, I, CON, SYS, SYSR, N, size, H, side):
     """A cylinder (map H into the plane's frame) against the half-space z <= 0: for each rim, its centre below
     the plane, or its lowest point (C_z <= r |a x e_z| in homogeneous terms, squared).  A rim that never
@@ -525,7 +525,7 @@ def _plane_rims(W, I, CON, SYS, SYSR, N, size, H, side):
             _close(SYS, SYSR, N, start, side, wit, 0.0)
 
 
-@_jit
+@jit
 def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, H, bsize, kind, size, side):
     """The 12 edges of a box (half sizes ``bsize``, its vertices ``vb`` under the map H into the other
     frame) against the solid ``kind``: tangencies and plane crossings (the vertices themselves are systems
@@ -545,7 +545,7 @@ def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, H, bsize, kind, size, side):
 HANDLED, PARTIAL = 1, 2  # build_pair's answers besides 0 (the pair is the ellipsoid solver's)
 
 
-@_jit
+@jit
 def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     """B (a sphere or capsule) against A: B's core in A inflated by B's radius (and A's own when rounded)."""
     HAB = fr.relative(W, I, FA, FB)
@@ -565,7 +565,7 @@ def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     return HANDLED
 
 
-@_jit
+@jit
 def _capsules(W, I, CON, SYS, SYSR, N, sa, FA, sb, FB):
     """Capsule against capsule: their segments come within ra + rb exactly when an end of B's comes that near
     A's segment (B's ends in A inflated by rb: its end balls and its cylinder), an end of A's comes that near
@@ -586,7 +586,7 @@ def _capsules(W, I, CON, SYS, SYSR, N, sa, FA, sb, FB):
     return HANDLED
 
 
-@_jit
+@jit
 def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
     """A (capsule, cylinder or box) against the ellipsoid B (radii sb)."""
     HBA = fr.relative(W, I, FB, FA)  # A's frame into the ellipsoid's
@@ -616,7 +616,7 @@ def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
     return HANDLED
 
 
-@_jit
+@jit
 def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     """All systems of the pair (shape ka, size sa, frame FA) and (kb, sb, FB).  Returns HANDLED; PARTIAL when
     the ellipsoid solver must add a capsule's end balls against an ellipsoid; 0 for the ellipsoid solver's
@@ -666,7 +666,7 @@ def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     return HANDLED
 
 
-@_jit
+@jit
 def _flip(SYS, N):
     """After building a pair with its shapes swapped: every system's side is turned back to the caller's."""
     for k in range(N[1]):
@@ -676,7 +676,7 @@ def _flip(SYS, N):
 # ---------------------------------------------------------------- points on a circle (bivariate in s)
 
 
-@_jit
+@jit
 def circle_rows(W, I, H, zc, r, chart):
     """The circle of radius r about the local z axis at height zc, under the map H: a homogeneous point
     (4, 3) of row slots, degree 2 in s.  Chart 0 covers the half x >= 0 (angle -pi/2..pi/2, by the tangent
@@ -693,7 +693,7 @@ def circle_rows(W, I, H, zc, r, chart):
     return out
 
 
-@_jit
+@jit
 def _blin(W, I, rows, row):
     """A linear constraint on a bivariate homogeneous point: row by row."""
     ds = rows.shape[1] - 1
@@ -706,7 +706,7 @@ def _blin(W, I, rows, row):
     return out
 
 
-@_jit
+@jit
 def _bcoord(W, I, rows, c, e):
     """The bivariate coordinate c of the point less e times its weight (row by row)."""
     ds = rows.shape[1] - 1
@@ -716,7 +716,7 @@ def _bcoord(W, I, rows, c, e):
     return out
 
 
-@_jit
+@jit
 def _bquadric(W, I, qk, qp, rows):
     """The piece's quadric at a bivariate homogeneous point (degree twice the point's in s)."""
     acc = np.empty(0, dtype=np.int64)
@@ -743,7 +743,7 @@ def _bquadric(W, I, qk, qp, rows):
     return P.badd(W, I, acc, P.bmul(W, I, w, w), -1.0)
 
 
-@_jit
+@jit
 def _bpositive(W, I, rows):
     """True when a bivariate polynomial is proven > 0 everywhere (each row's coefficients are)."""
     for i in range(rows.shape[0]):
@@ -752,7 +752,7 @@ def _bpositive(W, I, rows):
     return True
 
 
-@_jit
+@jit
 def curve_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
     """The bivariate system 'the point pt (rows in s) lies in the piece'."""
     cons = np.empty((MAXLIN + 1, 5), dtype=np.int64)
@@ -780,7 +780,7 @@ def curve_in_piece(W, I, CON, SYS, SYSR, N, pt, qk, qp, lins, nlin, side, r_w):
     _bclose(SYS, SYSR, N, start, side, pt, r_w)
 
 
-@_jit
+@jit
 def _circles_in_solid(W, I, CON, SYS, SYSR, N, H, r, h, kind, size, side):
     """The two rims (radius r, heights +-h) of a cylinder, mapped by H into the frame of the solid ``kind``,
     against that solid, both charts each."""
@@ -792,7 +792,7 @@ def _circles_in_solid(W, I, CON, SYS, SYSR, N, H, r, h, kind, size, side):
                 curve_in_piece(W, I, CON, SYS, SYSR, N, rows, PQ[k], PP[k], PL[k], PN[k], side, 0.0)
 
 
-@_jit
+@jit
 def segment_in_torus(W, I, CON, SYS, SYSR, N, p0, p1, rc, zc, R1, R2, side, r_w):
     """The bivariate systems 'a point of the segment [p0, p1] lies within R1 + R2 of the circle of radius rc
     about the z axis at height zc' (see :func:`point_in_torus`)."""
@@ -826,7 +826,7 @@ def segment_in_torus(W, I, CON, SYS, SYSR, N, p0, p1, rc, zc, R1, R2, side, r_w)
 # ---------------------------------------------------------------- against an ellipsoid: sections and shadows
 
 
-@_jit
+@jit
 def _homogeneous_direction(d, zero):
     """The direction d (3 slots) as a homogeneous point of weight ``zero`` (the zero slot)."""
     out = np.empty(4, dtype=np.int64)
@@ -836,13 +836,13 @@ def _homogeneous_direction(d, zero):
     return out
 
 
-@_jit
+@jit
 def _ellipsoid_form(W, I, rad, U, V):
     """sum U_i V_i / r_i^2 - Uw Vw in the ellipsoid's frame (U, V homogeneous, 4 slots)."""
     return _bilinear(W, I, ELLIPSOIDAL, np.array([0.0, rad[0], rad[1], rad[2], 0.0, 0.0, 0.0]), U, V)
 
 
-@_jit
+@jit
 def face_section(W, I, CON, SYS, SYSR, N, H, rad, axis, sign, h, size, disk, side):
     """The planar face x_axis = sign h of a box (half sizes ``size``) or, with ``disk``, the cap of radius
     size[0] of a cylinder, against the ellipsoid (radii ``rad``) in whose frame H maps the face's shape: the
@@ -899,7 +899,7 @@ def face_section(W, I, CON, SYS, SYSR, N, H, rad, axis, sign, h, size, disk, sid
     _close(SYS, SYSR, N, start, side, wit, 0.0)
 
 
-@_jit
+@jit
 def lateral_shadow(W, I, CON, SYS, SYSR, N, H, rad, r, h, side):
     """The side of a cylinder (radius r, |z| <= h; H maps its frame into the ellipsoid's) against the
     ellipsoid: a line of the side (through a point of the circle of radius r, parallel to the axis) meets
@@ -943,7 +943,7 @@ def lateral_shadow(W, I, CON, SYS, SYSR, N, H, rad, r, h, side):
         _bclose(SYS, SYSR, N, start, side, wit, 0.0)
 
 
-@_jit
+@jit
 def axis_lines(W, I, CON, SYS, SYSR, N, H, ra, ha, rb, hb, side):
     """Side against side of two cylinders (radii ra, rb, half lengths ha, hb; H maps B's frame into A's): the
     closest points of their axis lines lie within both lengths, at most ra + rb apart.  With n = e_z x D (D

@@ -117,6 +117,14 @@ def motions_between(model, ellipsoids, state0, state1, motion="rigid"):
     return checker.motions(as_state(model, state0, "state_t0"), as_state(model, state1, "state_t1"))
 
 
+def _report(first, contacts, counts):
+    """A :class:`StepReport` of a rigid or affine check: ``counts`` in :class:`mjccd.scene.FrameCounters`' order,
+    read by name."""
+    counters = StepCounters(counts)
+    return StepReport(first, contacts, counters["pairs"], counters["solved_exactly"], counters["uncertain"], False,
+                      counters)
+
+
 class ModelAdapter:
     """A model, its fitted ellipsoids and the pairs to check, bound to the CCD core for one motion model.
 
@@ -346,10 +354,8 @@ class ModelAdapter:
             return self.scene_report(t0, t1, scene.first_pair(p0, p1, new_contacts_only=new_only), p0, p1, new_only)
         frame = scene.step(p0, p1, all_pairs=True, new_contacts_only=new_only)  # its uncertain pairs settled
         contacts = [self._converted(t0, t1, c, p0) for c in frame.contacts]
-        counters = list(astuple(frame.counters))  # pairs, ..., solved_exactly (5), ..., uncertain (8)
         contacts.sort(key=lambda c: c.fraction)
-        first = contacts[0] if contacts else None
-        return StepReport(first, tuple(contacts), counters[0], counters[5], counters[8], False, StepCounters(counters))
+        return _report(contacts[0] if contacts else None, tuple(contacts), list(astuple(frame.counters)))
 
     def scene_report(self, t0, t1, best_k, p0, p1, new_only=False):
         """The :class:`StepReport` of the scene's last first-contact check (of a step from time ``t0`` to ``t1``
@@ -357,7 +363,6 @@ class ModelAdapter:
         as :meth:`mjccd.scene.Scene.first_pair` and :func:`~mjccd.mujoco.motions.poses_then_first` answer.  A
         first contact the scene could not decide sends the step through every pair (:meth:`check_poses`), its
         uncertain answers to the core's exact tiers."""
-        counters = self._counters.tolist()  # pairs, ..., solved_exactly (5), ..., uncertain (8): FrameCounters' order
         first = None
         if best_k >= 0:
             a = self._answers
@@ -370,7 +375,7 @@ class ModelAdapter:
                 report = self.check_poses(t0, t1, p0, p1, all_pairs=True, new_only=new_only)
                 return StepReport(report.first, (), report.pairs_checked, report.pairs_solved, report.pairs_uncertain,
                                   False, report.counters)
-        return StepReport(first, (), counters[0], counters[5], counters[8], False, StepCounters(counters))
+        return _report(first, (), self._counters.tolist())
 
     def _converted(self, t0, t1, hit, p0):
         """The :class:`StepContact` of a scene contact (``FirstContact``, ``PairContact`` or ``PlaneContact``) of

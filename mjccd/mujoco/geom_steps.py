@@ -14,7 +14,7 @@ import numpy as np
 
 from mjccd.geoms import batch as gb
 from mjccd.geoms import kernel as kn
-from mjccd.geoms.poly import _jit
+from mjccd.geoms.poly import jit
 from mjccd.geoms.solve import workspaces
 from mjccd.mujoco.motions import (KINEMATIC_STATE, MIN_NORM2, STATE_NOT_FINITE, State, finite_state,
                                   has_zero_quaternion, kinematic_state, quaternion_addresses)
@@ -24,7 +24,7 @@ POSES_ONLY = -5  # the poses are written and sound, no pair checked (asked for: 
 ZERO_QUATERNION = -6  # a joint or mocap quaternion of the end state is zero (no rotation): a bad state
 
 
-@_jit
+@jit
 def poses_then_pairs(qpos, qvel, mocap_quat, quaternions, xpos, xquat, body, local, Q0, Q1, check, kinds, sizes,
                      pairs, min_motion, new_only, W, I, Wdd, Idd, CON, SYS, SYSR, N, out, counts):
     """The compiled part of a monitored step in geoms mode: the end poses Q1 (G, 7) from the body poses

@@ -21,15 +21,10 @@ from mjccd.scene import Scene
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))
 import test_adversarial as family  # noqa: E402  (the generator of the stacked cases)
+from test_scene import _two_pose_poses  # noqa: E402
 
 SPECS = [(family.NEEDLE_FLAT, family.NEEDLE_FLAT, True), (family.NEEDLE_UP, family.DISK_FACE, False),
          (family.DISK_FACE, family.DISK_EDGE, False), (family.DISK_FACE, family.DISK_FACE, True)]
-
-
-def _poses(motion):
-    """(pose at t = 0, pose at t = 1), each [x, y, z, qw, qx, qy, qz], of a static or rigid case motion."""
-    start, end = (motion, motion) if motion["type"] == "static" else (motion["start"], motion["end"])
-    return start["position"] + start["quaternion"], end["position"] + end["quaternion"]
 
 
 def measure(delta, cases, seed):
@@ -42,8 +37,8 @@ def measure(delta, cases, seed):
         ra, rb, a_static = SPECS[n % 4]
         sign = 1 if (n // 4) % 2 else -1
         case = family._stacked(rng, f"c{n}", list(ra), list(rb), sign * delta * max(ra + rb), a_static, [])
-        (a0, a1), (b0, b1) = _poses(case["a"]["motion"]), _poses(case["b"]["motion"])
-        motions = [mjccd.Rigid(p0[:3], p0[3:], p1[:3], p1[3:]) for p0, p1 in ((a0, a1), (b0, b1))]
+        start, end = _two_pose_poses(case)
+        motions = [mjccd.Rigid(p0[:3], p0[3:], p1[:3], p1[3:]) for p0, p1 in zip(start, end)]
         t0 = time.perf_counter()
         c = mjccd.first_contact(mjccd.Ellipsoid(ra), motions[0], mjccd.Ellipsoid(rb), motions[1])
         times.append(time.perf_counter() - t0)
@@ -54,7 +49,6 @@ def measure(delta, cases, seed):
             row["certified"] += 1
         else:
             row["wrong"] += 1
-        start, end = [a0, b0], [a1, b1]
         raw = Scene([ra, rb]).step(start, end, resolve_uncertain=False).first
         row["kernel uncertain"] += raw is not None and raw.bracket is not None
         first = Scene([ra, rb]).step(start, end).first

@@ -56,9 +56,9 @@ from mjccd import filters as fl
 from mjccd.ccd import TIME_TOL, exact_pair, same_orientation
 from mjccd.errors import InputError
 from mjccd.plane import PLANE_WORK, RUN_FIELDS, RUNS_AT, TWO_POSE_RUNS, Plane, plane_pair_kernel, plane_rows
-from mjccd.settle import pair_problem, settle
 from mjccd.quadric import (pencil_point_into, pencil_quartic, quadric_matrix, quartic_max,
                             separating_plane_matrices, static_status_pose)
+from mjccd.settle import pair_problem, settle
 from mjccd.sorting import sort_by_key
 
 # compiled on first use and cached; no cfunc wrapper (no kernel is passed around as a first-class function);
@@ -1364,10 +1364,15 @@ class Scene:
         all_pairs, new_only = bool(all_pairs), bool(new_contacts_only)
         result = self._result(*self._frame(poses_t0, poses_t1, all_pairs, new_only), all_pairs)
         if result.certainty == "uncertain" and resolve_uncertain:
-            if not all_pairs:  # which contact comes first is known only once every pair is
-                result = self._result(*self._frame(poses_t0, poses_t1, True, new_only), True)
-            result = self._settled(result, new_only, all_pairs)
+            if not all_pairs:
+                return self._settled_first(poses_t0, poses_t1, new_only)
+            result = self._settled(result, new_only, True)
         return result
+
+    def _settled_first(self, poses_t0, poses_t1, new_only):
+        """The first-contact :class:`FrameResult` of a frame whose first contact the kernel left uncertain: which
+        contact comes first is known only once every pair is, so every pair is checked and settled."""
+        return self._settled(self._result(*self._frame(poses_t0, poses_t1, True, new_only), True), new_only, False)
 
     def _result(self, best_k, niv, all_pairs):
         """The :class:`FrameResult` of the kernel's last frame, read off the workspace."""
@@ -1425,7 +1430,7 @@ class Scene:
         first = first_of(best_k, a.outcome, a.times, a.times_hi, a.points, a.normals)
         if first.bracket is None or not resolve_uncertain:
             return first
-        c = self.step(poses_t0, poses_t1, new_contacts_only=new_contacts_only).first
+        c = self._settled_first(poses_t0, poses_t1, bool(new_contacts_only)).first
         return None if c is None else FirstContact(c.pair, c.time, c.point, c.normal, c.bracket)
 
     @exclusive

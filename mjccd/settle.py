@@ -82,10 +82,10 @@ def settle(problem_of, contacts, new_only, make, *, intervals=False):
     contact the core certifies is replaced by its answer, one it proves free is left out; one still uncertain
     takes the core's bracket and estimate.  ``make(k, answer)`` makes the contact of pair k.  ``tally`` counts,
     for the caller's counters, the contacts ``settled`` (no longer uncertain, those left out included),
-    ``free`` (proven free), ``not_new`` (left out by ``new_only``) and ``found`` (a first contact now known
-    whose uncertain answer had only bracketed it).
+    ``not_new`` (left out by ``new_only``) and ``found`` (a first contact now known whose uncertain answer had
+    only bracketed it).
     """
-    out, tally = [], dict.fromkeys(("settled", "free", "not_new", "found"), 0)
+    out, tally = [], dict.fromkeys(("settled", "not_new", "found"), 0)
     for c in contacts:
         if c.certainty == "certified":
             out.append(c)
@@ -94,8 +94,7 @@ def settle(problem_of, contacts, new_only, make, *, intervals=False):
         bracketed = c.bracket is not None and c.bracket[0] != c.bracket[1]  # its first contact was not known
         certain = answer is None or answer.bracket is None
         tally["settled"] += certain
-        if answer is None:
-            tally["free"] += 1
+        if answer is None:  # proven free
             continue
         tally["found"] += bracketed and (certain or answer.bracket[0] == answer.bracket[1])
         if new_only and answer.status_at_start != "separate":

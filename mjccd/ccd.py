@@ -74,8 +74,8 @@ TIME_TOL = 1e-9           # an event is certified when its time is this close to
 # half-width of the bracket around a double estimate that the rational tier tries before bisecting to 2^-60: where it
 # holds, the estimate is the answer, proven within 9e-16
 NEAR_SPAN = 2.0 ** -50
-STRETCH_PIECES = 8       # pieces of time a round may take to prove a stretch separate in rationals
-SPURIOUS_PIECES = 16     # pieces of time the proof that a doubtful interval holds no contact may take
+STRETCH_PIECES = 32      # pieces of time a round may take to prove a stretch separate in rationals
+SPURIOUS_PIECES = 64     # pieces of time the proof that a doubtful interval holds no contact may take
 STRETCH_ROUNDS = 12      # rounds of that proof, each followed by the double solver from its end
 HELD_PROBES = 64          # exact statuses an uncertain bracket's end may take to reach a time the pair is not separate
 
@@ -1324,9 +1324,16 @@ def verdict(intervals, bounds, reached, t_max):
 
 @_jit
 def _centre(P, U, s, t):
-    """Centre of the moving ellipsoid at time t: where the gradient of X^T A X vanishes."""
+    """Centre of the moving ellipsoid at time t: where the gradient of X^T A X vanishes.  It only places the
+    pencil's frame (any origin gives the same answers): for a body flattened to within rounding of a plane
+    (a near-singular linear part) the least-squares point stands in."""
     A = quadric_at(P, U, s, t)
-    return -np.linalg.solve(A[:3, :3], A[:3, 3].copy())
+    M, g = A[:3, :3].copy(), A[:3, 3].copy()
+    if np.linalg.det(M) != 0.0:
+        centre = -np.linalg.solve(M, g)
+        if np.isfinite(centre).all():
+            return centre
+    return -np.linalg.lstsq(M, g)[0]
 
 
 @_jit
@@ -2118,7 +2125,20 @@ def _settled_stretch(pair, solution, first_only, t_max):
                 return _settled_stretch_none(solution)
             return _with_first_contact(pair, solution, float(window.intervals[0, 0]), window.bounds[0, :2],
                                        first_only)
-    return solution._replace(bracket=(_float_below(start), hi), precision=RATIONAL)
+    return _separate_before(solution._replace(bracket=(_float_below(start), hi), precision=RATIONAL),
+                            _float_below(start))
+
+
+def _separate_before(solution, start):
+    """``solution`` with its intervals cut to what follows ``start``, before which the pair is proven
+    separate: an interval that ends before it goes, one that spans it starts there (its brackets too), so
+    that no interval claims a possible contact outside the first contact's bracket."""
+    keep = [k for k in range(len(solution.intervals)) if solution.bounds[k, 3] >= start]
+    intervals, bounds = solution.intervals[keep].copy(), solution.bounds[keep].copy()
+    if len(keep):
+        intervals[0] = np.maximum(intervals[0], start)
+        bounds[0] = np.maximum(bounds[0], start)
+    return solution._replace(intervals=intervals, bounds=bounds)
 
 
 def _spurious_dropped(pair, solution):

@@ -1386,10 +1386,12 @@ class Scene:
         a = self._arrays
         return pair_problem(self.motion, a.radii, a.pairs, a.planes, a.plane_pairs, a.p0, a.q0, a.p1, a.q1, int(k))
 
-    def _settled(self, result, new_only, all_pairs):
+    def _settled(self, result, new_only, all_pairs, not_new=None):
         """``result`` (every pair's contacts) with its uncertain contacts asked again of the core; the first
-        contact is the earliest of what is left (lowest pair index on a tie, as the kernel chooses)."""
-        contacts, tally = settle(self.pair_problem, result.contacts, new_only, self._contact_of, intervals=all_pairs)
+        contact is the earliest of what is left (lowest pair index on a tie, as the kernel chooses).
+        ``not_new``: as in :func:`mjccd.settle.settle`."""
+        contacts, tally = settle(self.pair_problem, result.contacts, new_only, self._contact_of, intervals=all_pairs,
+                                 not_new=not_new)
         c = result.counters
         counters = replace(c, uncertain=c.uncertain - tally["settled"], colliding=c.colliding + tally["found"],
                            overlapping_t0=c.overlapping_t0 + tally["not_new"])
@@ -1501,7 +1503,8 @@ class Scene:
     def settled_step(self, poses_t0, poses_t1, *, new_contacts_only=False):
         """``(result, outcomes)``: :meth:`step` through every pair with its uncertain contacts settled (a
         :class:`FrameResult`), and the outcome code of every pair after that ((P + Q,) int8: a settled pair is
-        ``EXACT_HIT``, ``OVERLAP_T0`` at t = 0, ``EXACT_FREE``, or still ``UNCERTAIN``).  How :meth:`run`'s
+        ``EXACT_HIT``, ``OVERLAP_T0`` at t = 0 (also one ``new_contacts_only`` leaves out), ``EXACT_FREE``, or
+        still ``UNCERTAIN``).  How :meth:`run`'s
         frames and :class:`~mjccd.batch.BatchScene`'s worlds with an uncertain answer are checked again; the
         plane cache is left as it was."""
         a = self._arrays
@@ -1513,12 +1516,15 @@ class Scene:
             a.cache_n[:], a.cache_kind[:] = cache
         outcomes = a.outcome.copy()
         if result.certainty == "uncertain":
-            result = self._settled(result, new_only, True)
+            not_new = []
+            result = self._settled(result, new_only, True, not_new)
             answered = {c.pair: c for c in result.contacts}
+            not_new = set(not_new)
             for k in np.flatnonzero(outcomes == UNCERTAIN).tolist():
                 c = answered.get(k)
-                outcomes[k] = (EXACT_FREE if c is None else UNCERTAIN if c.certainty == "uncertain"
-                               else OVERLAP_T0 if c.time == 0.0 else EXACT_HIT)
+                outcomes[k] = (OVERLAP_T0 if k in not_new else EXACT_FREE if c is None
+                               else UNCERTAIN if c.certainty == "uncertain" else OVERLAP_T0 if c.time == 0.0
+                               else EXACT_HIT)
         return result, outcomes
 
     def _settle_frames(self, poses, out, uncertain, new_only):

@@ -74,7 +74,7 @@ def ask_again(problem, *, intervals=False):
     return Answer(hit.time, point, normal, hit.status_at_start, None if certain else hit.bracket, spans)
 
 
-def settle(problem_of, contacts, new_only, make, *, intervals=False):
+def settle(problem_of, contacts, new_only, make, *, intervals=False, not_new=None):
     """``(contacts, tally)``: ``contacts`` (anything with ``pair``, ``certainty`` and ``bracket``) with each
     uncertain one asked again (:func:`ask_again`).
 
@@ -83,7 +83,8 @@ def settle(problem_of, contacts, new_only, make, *, intervals=False):
     takes the core's bracket and estimate.  ``make(k, answer)`` makes the contact of pair k.  ``tally`` counts,
     for the caller's counters, the contacts ``settled`` (no longer uncertain, those left out included),
     ``not_new`` (left out by ``new_only``) and ``found`` (a first contact now known whose uncertain answer had
-    only bracketed it).
+    only bracketed it).  ``not_new``: a list that gets the pairs left out by ``new_only``, for callers that
+    label each pair.
     """
     out, tally = [], dict.fromkeys(("settled", "not_new", "found"), 0)
     for c in contacts:
@@ -99,6 +100,8 @@ def settle(problem_of, contacts, new_only, make, *, intervals=False):
         tally["found"] += bracketed and (certain or answer.bracket[0] == answer.bracket[1])
         if new_only and answer.status_at_start != "separate":
             tally["not_new"] += 1
+            if not_new is not None:
+                not_new.append(c.pair)
             continue
         out.append(make(c.pair, answer))
     return out, tally

@@ -627,6 +627,7 @@ FAMILIES = {
     'spin': spin_cases(),
     'singular': singular_cases(),
     'singular_late': singular_late_cases(),
+    'flat': _load('near_singular_flat.json')['cases'],
 }
 SHARED = ('far', 'extreme', 'arm', 'spin', 'singular')   # the families of the shared hard set's kinds
 DYADIC = dyadic_cases()
@@ -702,6 +703,17 @@ def test_near_singular_brackets_hold_late_contacts(case):
     the oracle's first contact (uncertain answers are allowed here: this family is beyond the shared set's)."""
     expected = _against_oracle('singular_late', case)
     assert expected['first_contact'] is not None and expected['first_contact'] > 0.0, expected
+
+
+@pytest.mark.parametrize('case', FAMILIES['flat'], ids=_ids(FAMILIES['flat']))
+def test_bodies_flattened_to_1e_8_are_certified(case):
+    """Flattened to 1e-4 .. 1e-8 of their size (tests/data/near_singular_flat.json says what each did before):
+    certified and right against the oracle, through the rational tier's stretch proofs."""
+    expected = _oracle_answers('flat')[case['id']]
+    assert 'oracle_error' not in expected, expected['oracle_error']
+    got = _solve([case]).get(case['id'])
+    _assert_accepted(case, expected, got)
+    assert got['certainty'] == 'certified', (got, expected)
 
 
 @pytest.mark.parametrize('case,expected', DYADIC, ids=[c['id'] for c, _ in DYADIC])

@@ -508,3 +508,17 @@ def test_rational_tier_confirms_the_double_estimate_as_bisection_would(monkeypat
             assert abs(x.intervals[0, 0] - y.intervals[0, 0]) <= 2.0 ** -49
             assert x.bounds[0, 1] - x.bounds[0, 0] <= 2.0 ** -49
     assert refined >= 3
+
+
+def test_an_interval_before_the_proven_separation_is_cut_to_it():
+    """The rational tier proved the pair separate up to 0.5; the double solver's intervals said [0.2, 0.3]
+    and [0.45, 0.6]: the first goes, the second starts at 0.5 (its brackets too), so no interval claims a
+    possible contact outside the first contact's bracket [0.5, 0.6]."""
+    from mjccd.ccd import PairSolution, _separate_before
+
+    solution = PairSolution(1, np.array([[0.2, 0.3], [0.45, 0.6]]), None, None, False, (0.5, 0.6),
+                            np.array([[0.19, 0.21, 0.29, 0.31], [0.44, 0.46, 0.59, 0.61]]))
+    cut = _separate_before(solution, 0.5)
+    assert cut.intervals.tolist() == [[0.5, 0.6]]
+    assert cut.bounds.tolist() == [[0.5, 0.5, 0.59, 0.61]]
+    assert (cut.bracket, cut.certified) == ((0.5, 0.6), False)

@@ -427,6 +427,23 @@ def test_an_uncertain_bracket_that_misses_the_truth_is_asked_again(python_kernel
     assert (raw_run.pair[0], raw_run.time[0], raw_run.uncertain[0]) == (1, 0.1, 1)
 
 
+def test_a_settled_pair_touching_at_the_start_is_labelled_overlapping(python_kernel):
+    """Pair 2 of three_pairs made to touch exactly at the start; the kernel's stand-in calls it separate then
+    and uncertain in [0, 0.1].  Asked again with new contacts only, the core finds it touching at the start:
+    not new, so left out, and its outcome is OVERLAP_T0 (in contact at t = 0), not EXACT_FREE."""
+    from mjccd.scene import OVERLAP_T0
+
+    python_kernel({20.0: _limit(0.0, 0.1)})
+    scene, p0, p1 = three_pairs()
+    p0, p1 = p0.copy(), p1.copy()
+    p0[5, 0] = 21.0  # unit spheres 1 apart: touching
+    raw = scene.step(p0, p1, new_contacts_only=True, resolve_uncertain=False)
+    assert (raw.first.pair, raw.first.certainty) == (2, "uncertain")
+    result, outcomes = scene.settled_step(p0, p1, new_contacts_only=True)
+    assert result.certainty == "certified" and result.first.pair == 1
+    assert outcomes[2] == OVERLAP_T0
+
+
 def test_uncertain_pairs_with_all_pairs(python_kernel):
     """all_pairs: pair 2 (touching at 6/7) hits a limit before its first contact, bracket [0.8, 0.95]; pair 1
     finds its first contact at 0.25 but its later intervals hit a limit (bracket [0.25, 0.25]); pair 0 overlaps

@@ -190,6 +190,8 @@ class CCDMonitor:
         self._watched = self._warnings = self._bad = self._bad_bytes = None
         self._exclusive = Exclusive("CCDMonitor")
         self._quaternions = quaternion_addresses(model)  # a zero one is a bad state (see advance_checked)
+        self._any_quaternion = len(self._quaternions) > 0 or model.nmocap > 0
+        self._qpos = self._mocap_quat = None  # views of the watched data's (see _watch)
 
     @property
     def scene(self):
@@ -247,16 +249,18 @@ class CCDMonitor:
             return self.last_report
         if self.geoms is not None:
             return self._advance_geoms(d, advance, counts, counts_before, time_before, step_name, bodies_current)
-        if self._zero_quaternion(d):  # a start state with no rotation: the step is taken, not checked
-            advance()
-            return self._unstable()
         poses = self._poses
         if poses is None and self.adapter.scene is not None:
             poses = self._poses = StepCheck(self)
+        # a start state with no rotation: the step is taken, not checked (a start state the step check has
+        # recorded before was tested then: every state it holds has passed this test)
+        if (poses is None or not poses.begin(d)) and self._zero_quaternion(d):
+            if poses is not None:
+                poses.forget_start()
+            advance()
+            return self._unstable()
         if poses is None:
             s0 = capture(d)
-        else:  # rigid and affine motions: the poses of both ends by compiled calls, no state copies
-            poses.begin(d)
         advance()
         # went_bad's warning and time tests (any warning, then the bad-state ones): the state's own is compiled
         if (counts.tobytes() != counts_before and self._bad.tobytes() != counts_before[self._bad_bytes]) \
@@ -313,13 +317,15 @@ class CCDMonitor:
                                                       new_only))
 
     def _zero_quaternion(self, data):
-        """True when a joint or mocap quaternion of ``data`` is zero (no rotation: MuJoCo's kinematics would
-        read it as the identity, a chain's turns divide by it)."""
-        return (len(self._quaternions) or len(data.mocap_quat)) and \
-            has_zero_quaternion(data.qpos, data.mocap_quat, self._quaternions, MIN_NORM2)
+        """True when a joint or mocap quaternion of the watched ``data`` is zero (no rotation: MuJoCo's
+        kinematics would read it as the identity, a chain's turns divide by it)."""
+        return self._any_quaternion and \
+            has_zero_quaternion(self._qpos, self._mocap_quat, self._quaternions, MIN_NORM2)
 
     def _watch(self, data):
-        """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones) once per data."""
+        """Fetch the views of ``data``'s warning counts (all of them, and the bad-state ones), positions and
+        mocap quaternions once per data."""
+        self._qpos, self._mocap_quat = data.qpos, data.mocap_quat
         self._warnings = data.warning.number
         self._bad = self._warnings[BAD_COUNTS]
         size = self._warnings.itemsize
@@ -436,7 +442,7 @@ class StepCheck:
         self._start = self._end
 
     def begin(self, data, state=None):
-        """Record the state at the start of a step.
+        """Record the state at the start of a step: True when it is a state recorded before (its poses kept).
 
         ``state``: the kinematic state (``KINEMATIC_STATE`` layout) when the caller already holds it
         (the guard reads it off its saved full state), else it is read from ``data``.
@@ -452,6 +458,12 @@ class StepCheck:
             kd = self._fill(idx, kb, state)
             ellipsoid_poses_into(kd.xpos, kd.xquat, self.body_ids, self.positions, self.quaternions, slots[idx][2])
             self._start = idx
+            return False
+        return True
+
+    def forget_start(self):
+        """Drop the state recorded by the last ``begin`` (a bad one, not to be taken as a known state)."""
+        self._slots[self._start][1] = None
 
     def _record_end(self, data, bodies_current=False):
         """Record the state of ``data`` as the end of the step begun last: the index of the slot whose poses

@@ -38,7 +38,9 @@ from mjccd.quadric import quat_to_matrix
 DIGITS = 60                # working precision of the touching points
 ROOT_DIGITS = 50          # the candidate times are isolated to 1e-50
 TIE = 1e-18                # a trim within this (relative) of zero is undecided
-_AXES = ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1))
+# the start status's approach directions: rational unit vectors along no axis and no plane of symmetry
+_APPROACHES = tuple(tuple(sign * Fraction(c, 13) for c in v) for v in ((3, 4, 12), (-4, 12, 3), (12, -3, 4))
+                    for sign in (1, -1))
 
 
 def _sympy():
@@ -602,7 +604,7 @@ class _Solver:
         self.sp, self.mp = _sympy()
         self.a, self.b = a, b
         self.pair = _Pair(MA, MB)
-        self.MA = MA
+        self.MA, self.MB = MA, MB
         self.num = _Numeric(self.sp, self.mp, self.pair)
         self.lam = self.sp.Symbol("lam")
 
@@ -758,7 +760,16 @@ class _Solver:
             def point(t0):
                 Cn, ln = self.num.at(C, t0), self.num.at(ell, t0)
                 u = self._adjugate(Cn) * ln
-                return [u]
+                if mp.norm(u) > mp.mpf(10) ** (-DIGITS // 2) * mp.mnorm(Cn, 1) ** 2 * mp.norm(ln):
+                    return [u]
+                # the section is a double line (the edge's plane tangent to a cylinder along a ruling): the edge
+                # meets it where the two lines cross
+                _, S, V = mp.svd_r(Cn)
+                if S[1] > mp.mpf(10) ** (-DIGITS // 2) * S[0]:
+                    raise _Undecided
+                m = V[0, :]
+                return [mp.matrix([m[1] * ln[2] - m[2] * ln[1], m[2] * ln[0] - m[0] * ln[2],
+                                   m[0] * ln[1] - m[1] * ln[0]])]
         elif f.surface.is_plane:    # a conic edge against a plane face: the face's trace line touches the conic
             E = (P.T * _matrix(sp, e.surface) * P).applyfunc(sp.expand)
             m = (F * P).T.applyfunc(sp.expand)
@@ -1017,14 +1028,40 @@ class _Solver:
                     x = next(p for v, p in verdicts if v == _Verdict.YES)
                     time = float(t0)
                     names = (sub.elem_a.name, sub.elem_b.name)
+                    point, normal = self._touch(sub, x, t0)
                     if undecided is not None and t0 - undecided_at > mp.mpf(10) ** (-ROOT_DIGITS + 5):
-                        return (undecided, x, names, "uncertain", (undecided, time))
-                    return (time, x, names, "certified", None)
+                        return (undecided, point, normal, names, "uncertain", (undecided, time))
+                    return (time, point, normal, names, "certified", None)
                 if any(v == _Verdict.UNDECIDED for v, _ in verdicts) and undecided is None:
                     undecided, undecided_at = float(mp.mpf(lo.p) / lo.q), t0
         if undecided is not None:
-            return (undecided, None, None, "uncertain", (undecided, float(t_max)))
+            return (undecided, None, None, None, "uncertain", (undecided, float(t_max)))
         return None
+
+    def _touch(self, sub, x, t0):
+        """The world point of the touch (x: in A's frame) and the unit normal outward from A, from the face that
+        touches (A's, else B's turned round); None for two edges or an edge and a vertex."""
+        mp = self.mp
+        X = mp.matrix([x[0], x[1], x[2], 1])
+        W = self.num.at(self.MA, t0) * X
+        point = np.array([float(W[i] / W[3]) for i in range(3)])
+        for element, frame, motion, sign in ((sub.elem_a, X, self.MA, 1), (sub.elem_b, None, self.MB, -1)):
+            if not isinstance(element, Face):
+                continue
+            if frame is None:
+                frame = self.num.at(self.pair.to_b, t0) * X
+                frame = frame / frame[3]
+            g = element.surface
+            if g.is_plane:
+                grad = [mp.mpf(g.form[i].numerator) / g.form[i].denominator for i in range(3)]
+            else:
+                grad = [2 * sum(mp.mpf(g.form[i][j].numerator) / g.form[i][j].denominator * frame[j]
+                                for j in range(4)) for i in range(3)]
+            M = self.num.at(motion, t0)
+            L = np.array([[float(M[i, j] / M[3, 3]) for j in range(3)] for i in range(3)])
+            n = np.linalg.solve(L.T, np.array([float(v) for v in grad]))
+            return point, sign * n / np.linalg.norm(n)
+        return point, None
 
 
 def _certified_sign(iv, coeffs, x):
@@ -1114,26 +1151,31 @@ def _world_bound(sp, M, bound):
 
 
 def _start_status(a, b, MA, MB):
-    """"separate" when B can approach its start pose along a world axis, from beyond both bounding balls,
-    without touching A; "touching" when an approach touches only at its end; else "overlapping"."""
+    """"separate" when B can approach its start pose in a straight line, from beyond both bounding balls, without
+    touching A (proven); "touching" when an approach touches only at its end; "overlapping" when every
+    approach meets A before its end (a body shut in another's cavity without touching it would read so); None
+    when an approach is undecided and none is free."""
     sp, _ = _sympy()
     t = sp.Symbol("t")
     A0, B0 = MA.subs(t, 0), MB.subs(t, 0)
     ca, ra = _world_bound(sp, MA, a.bound)
     cb, rb = _world_bound(sp, MB, b.bound)
-    reach = float(np.linalg.norm(ca - cb)) + ra + rb + 1.0
-    touching = False
-    for axis in _AXES:
-        d = [sp.Rational(Fraction(reach * c)) for c in axis]
+    reach = sp.Rational(Fraction(float(np.linalg.norm(ca - cb)) + ra + rb + 1.0))
+    touching = undecided = False
+    for direction in _APPROACHES:
         shift = sp.eye(4)
         for i in range(3):
-            shift[i, 3] = d[i] * (1 - t)
+            shift[i, 3] = reach * sp.Rational(direction[i]) * (1 - t)
         found = _Solver(a, b, A0, (shift * B0).applyfunc(sp.expand)).first(1.0)
         if found is None:
             return "separate"
-        if found[3] == "certified" and found[0] == 1.0:
+        if found[4] != "certified":
+            undecided = True
+        elif found[0] == 1.0:
             touching = True
-    return "touching" if touching else "overlapping"
+    if touching:
+        return "touching"
+    return None if undecided else "overlapping"
 
 
 def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
@@ -1152,17 +1194,14 @@ def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
     if not 0.0 < t_max <= 1.0:
         raise InputError(f"t_max: must be in (0, 1], got {t_max}")
     MA, MB = motion_matrix(motion_a, "motion_a"), motion_matrix(motion_b, "motion_b")
-    sp, mp = _sympy()
     status = _start_status(model_a, model_b, MA, MB)
-    if status != "separate":
+    if status not in ("separate", None):
         return Contact(0.0, None, None, status)
     found = _Solver(model_a, model_b, MA, MB).first(t_max)
+    if status is None:   # not proven apart at the start: a first contact may be there already
+        end = t_max if found is None else found[5][1] if found[5] else found[0]
+        return Contact(0.0, None, None, "overlapping", "uncertain", (0.0, end))
     if found is None:
         return None
-    time, x, names, certainty, bracket = found
-    point = None
-    if x is not None:
-        with mp.workdps(DIGITS):
-            W = _Numeric(sp, mp, _Pair(MA, MB)).at(MA, mp.mpf(time)) * mp.matrix([x[0], x[1], x[2], 1])
-            point = np.array([float(W[i] / W[3]) for i in range(3)])
-    return Contact(time, point, None, "separate", certainty, bracket, elements=names)
+    time, point, normal, names, certainty, bracket = found
+    return Contact(time, point, normal, "separate", certainty, bracket, elements=names)

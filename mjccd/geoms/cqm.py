@@ -285,8 +285,12 @@ def _homogeneous(sp, L, v, w):
     return M.applyfunc(sp.expand)
 
 
-def motion_matrix(motion, field="motion"):
-    """The homogeneous 4x4 polynomial matrix M(t) (sympy, exact for the motion's doubles) of local to world."""
+def motion_matrix(motion, field="motion", turns=True):
+    """(M, N): the homogeneous 4x4 polynomial matrix M(t) of local to world (sympy, exact for the motion's
+    doubles) and an exact inverse N(t) (N M = c(t) I with c > 0): for a pose lerp ``[[rot(q)^T, -rot(q)^T p],
+    [0, |q|^2]]``, of degree 3, since ``rot(q)`` is orthogonal up to ``|q|^4`` exactly; otherwise the
+    adjugate.  ``turns=False``: a pose lerp's orientation left out (a ball centred on the origin, which no
+    rotation changes), so that its matrices are of degree 1."""
     sp, _ = _sympy()
     t = sp.Symbol("t")
     R = sp.Rational
@@ -297,26 +301,30 @@ def motion_matrix(motion, field="motion"):
     def poly(coeffs):
         return sum((ex(c) * t ** k for k, c in enumerate(coeffs)), sp.Integer(0))
 
-    if type(motion) is Static:
-        q = [ex(c) for c in motion.quaternion]
-        n2 = sum(c * c for c in q)
-        return _homogeneous(sp, _rot_poly(sp, q), sp.Matrix([ex(c) for c in motion.position]) * n2, n2)
-    if type(motion) is Rigid:
-        q = [(1 - t) * ex(a) + t * ex(b) for a, b in zip(motion.quaternion0, motion.quaternion1)]
-        p = sp.Matrix([(1 - t) * ex(a) + t * ex(b) for a, b in zip(motion.position0, motion.position1)])
-        n2 = sp.expand(sum(c * c for c in q))
-        return _homogeneous(sp, _rot_poly(sp, q), p * n2, n2)
+    if type(motion) in (Static, Rigid):
+        if type(motion) is Static:
+            q = [ex(c) for c in motion.quaternion]
+            p = sp.Matrix([ex(c) for c in motion.position])
+        else:
+            q = [(1 - t) * ex(a) + t * ex(b) for a, b in zip(motion.quaternion0, motion.quaternion1)]
+            p = sp.Matrix([(1 - t) * ex(a) + t * ex(b) for a, b in zip(motion.position0, motion.position1)])
+        rot, n2 = _rot_poly(sp, q), sp.expand(sum(c * c for c in q))
+        if not turns:
+            rot, n2 = sp.eye(3), sp.Integer(1)
+        return _homogeneous(sp, rot, p * n2, n2), _homogeneous(sp, rot.T, -rot.T * p, n2)
     if type(motion) is Rational:
         rd, vd = poly(motion.rotation_denominator), poly(motion.translation_denominator)
         L = sp.Matrix(3, 3, lambda i, j: poly(motion.rotation[i][j]) * vd)
         v = sp.Matrix([poly(motion.translation[i]) * rd for i in range(3)])
-        return _homogeneous(sp, L, v, rd * vd)
-    if type(motion) is LinearAffine:
+        M = _homogeneous(sp, L, v, rd * vd)
+    elif type(motion) is LinearAffine:
         L = sp.Matrix(3, 3, lambda i, j: (1 - t) * ex(motion.start[i, j]) + t * ex(motion.end[i, j]))
         v = sp.Matrix([(1 - t) * ex(motion.start[i, 3]) + t * ex(motion.end[i, 3]) for i in range(3)])
-        return _homogeneous(sp, L, v, sp.Integer(1))
-    raise InputTypeError(f"{field}: the composite quadric solver takes Static, Rigid, Rational and LinearAffine "
-                         f"motions, got {type(motion).__name__}")
+        M = _homogeneous(sp, L, v, sp.Integer(1))
+    else:
+        raise InputTypeError(f"{field}: the composite quadric solver takes Static, Rigid, Rational and "
+                             f"LinearAffine motions, got {type(motion).__name__}")
+    return M, M.adjugate().applyfunc(sp.expand)
 
 
 # ---------------------------------------------------------------- subproblems
@@ -326,11 +334,11 @@ class _Pair:
     """The frames of one pair of models: ``to_a`` maps B's local points into A's frame, ``to_b`` the other way
     (both polynomial in t, each up to a nonzero factor)."""
 
-    def __init__(self, MA, MB):
+    def __init__(self, A, B):
         sp, _ = _sympy()
         self.t = sp.Symbol("t")
-        self.to_a = (MA.adjugate() * MB).applyfunc(sp.expand)
-        self.to_b = (MB.adjugate() * MA).applyfunc(sp.expand)
+        self.to_a = (A[1] * B[0]).applyfunc(sp.expand)
+        self.to_b = (B[1] * A[0]).applyfunc(sp.expand)
 
 
 def _matrix(sp, s):
@@ -604,7 +612,7 @@ class _Solver:
         self.sp, self.mp = _sympy()
         self.a, self.b = a, b
         self.pair = _Pair(MA, MB)
-        self.MA, self.MB = MA, MB
+        self.MA, self.MB = MA[0], MB[0]
         self.num = _Numeric(self.sp, self.mp, self.pair)
         self.lam = self.sp.Symbol("lam")
 
@@ -1157,16 +1165,19 @@ def _start_status(a, b, MA, MB):
     when an approach is undecided and none is free."""
     sp, _ = _sympy()
     t = sp.Symbol("t")
-    A0, B0 = MA.subs(t, 0), MB.subs(t, 0)
-    ca, ra = _world_bound(sp, MA, a.bound)
-    cb, rb = _world_bound(sp, MB, b.bound)
+    A0 = (MA[0].subs(t, 0), MA[1].subs(t, 0))
+    B0, B0_inverse = MB[0].subs(t, 0), MB[1].subs(t, 0)
+    ca, ra = _world_bound(sp, MA[0], a.bound)
+    cb, rb = _world_bound(sp, MB[0], b.bound)
     reach = sp.Rational(Fraction(float(np.linalg.norm(ca - cb)) + ra + rb + 1.0))
     touching = undecided = False
     for direction in _APPROACHES:
-        shift = sp.eye(4)
+        shift, back = sp.eye(4), sp.eye(4)
         for i in range(3):
             shift[i, 3] = reach * sp.Rational(direction[i]) * (1 - t)
-        found = _Solver(a, b, A0, (shift * B0).applyfunc(sp.expand)).first(1.0)
+            back[i, 3] = -shift[i, 3]
+        approach = ((shift * B0).applyfunc(sp.expand), (B0_inverse * back).applyfunc(sp.expand))
+        found = _Solver(a, b, A0, approach).first(1.0)
         if found is None:
             return "separate"
         if found[4] != "certified":
@@ -1176,6 +1187,18 @@ def _start_status(a, b, MA, MB):
     if touching:
         return "touching"
     return None if undecided else "overlapping"
+
+
+def _is_ball(model):
+    """A model no rotation about its origin changes: one face, a sphere centred there."""
+    if len(model.faces) != 1 or model.edges or model.vertices or model.faces[0].trims:
+        return False
+    s = model.faces[0].surface
+    if s.is_plane:
+        return False
+    q = s.form
+    return q[0][0] == q[1][1] == q[2][2] > 0 and all(q[i][j] == 0 for i in range(4) for j in range(4)
+                                                      if i != j)
 
 
 def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
@@ -1193,7 +1216,8 @@ def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
     t_max = float(t_max)
     if not 0.0 < t_max <= 1.0:
         raise InputError(f"t_max: must be in (0, 1], got {t_max}")
-    MA, MB = motion_matrix(motion_a, "motion_a"), motion_matrix(motion_b, "motion_b")
+    MA = motion_matrix(motion_a, "motion_a", not _is_ball(model_a))
+    MB = motion_matrix(motion_b, "motion_b", not _is_ball(model_b))
     status = _start_status(model_a, model_b, MA, MB)
     if status not in ("separate", None):
         return Contact(0.0, None, None, status)

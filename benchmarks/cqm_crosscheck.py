@@ -41,7 +41,7 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--translate", action="store_true", help="no turning: each body keeps its orientation")
     args = parser.parse_args(argv)
-    print(f"| pair | cases | agree | disagree | cqm uncertain | cqm median s | cqm max s |")
+    print("| pair | cases | agree | disagree | cqm uncertain | cqm median s | cqm max s |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for p, (kind_a, kind_b) in enumerate(PAIRS):
         agree = disagree = uncertain = 0

@@ -228,7 +228,7 @@ def quartic(A, B):
 
 def _roots(A, B):
     coeffs = quartic(A, B)
-    return mpmath.polyroots(coeffs[::-1], maxsteps=400, extraprec=4 * mp.prec, asc=True)
+    return mpmath.polyroots(coeffs, maxsteps=400, extraprec=4 * mp.prec)   # highest degree first
 
 
 def _negative_pair(roots):

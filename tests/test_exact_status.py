@@ -71,7 +71,7 @@ def mp_status(A, B):
         V = mpmath.matrix([[mpmath.mpf(u) ** k for k in range(5)] for u in range(5)])
         c = mpmath.lu_solve(V, mpmath.matrix(ys))
         g = lambda u: sum(c[k] * u ** k for k in range(5))  # noqa: E731
-        crit = mpmath.polyroots([c[1], 2 * c[2], 3 * c[3], 4 * c[4]], maxsteps=200, extraprec=200, asc=True)
+        crit = mpmath.polyroots([4 * c[4], 3 * c[3], 2 * c[2], c[1]], maxsteps=200, extraprec=200)
         pts = [0, 1] + [mpmath.re(r) for r in crit if abs(mpmath.im(r)) < 1e-30 and 0 < mpmath.re(r) < 1]
         gmax = max(g(u) for u in pts)
         return 1 if gmax > 0 else -1

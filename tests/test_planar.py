@@ -46,7 +46,7 @@ def mp_touch_point(ma, mb, ea, eb, t):
 
     A, B = conic(ma, ea), conic(mb, eb)
     f = lambda lam: mp.det(lam * A - B)  # noqa: E731
-    roots = mp.polyroots(_cubic(f)[::-1], maxsteps=200, extraprec=200, asc=True)
+    roots = mp.polyroots(_cubic(f), maxsteps=200, extraprec=200)
     neg = sorted(r.real for r in roots if abs(r.imag) < 1e-15 and r.real < 0)
     lam0 = 0.5 * (neg[0] + neg[-1])  # a double root: both negative roots coincide
     Q = lam0 * A - B

@@ -33,7 +33,6 @@ from mjccd.ccd import Contact
 from mjccd.errors import InputError, InputTypeError
 from mjccd.geoms.exact import number
 from mjccd.motion import LinearAffine, Rational, Rigid, Static
-from mjccd.quadric import quat_to_matrix
 
 DIGITS = 60                # working precision of the touching points
 ROOT_DIGITS = 50          # the candidate times are isolated to 1e-50
@@ -204,7 +203,7 @@ def capped_cylinder(a, b, half_length, *, name="cylinder"):
     side, h = elliptic_cylinder(a, b), _positive(half_length, "half_length")
     top, bottom = plane((0, 0, 1), h), plane((0, 0, -1), h)
     return CompositeQuadric(
-        [Face(side, (top, bottom), "side"), Face(bottom, (side,), "cap -z"), Face(top, (side,), "cap +z")],
+        [Face(side, (top, bottom), "side"), Face(bottom, (side,), "face -z"), Face(top, (side,), "face +z")],
         [Edge(bottom, side, (), "rim -z"), Edge(top, side, (), "rim +z")],
         bound=_norm(max(number(a, "a"), number(b, "b")), h), name=name)
 
@@ -469,6 +468,8 @@ def _binary_resultant(f, g):
 
 
 class _Subproblem(NamedTuple):
+    """One element pair: its polynomials in t, the check of a root t0, and the moving touch where it persists."""
+
     kind: str             # "F-F", "F-E", "E-F", "E-E", "F-V", "V-F"
     elem_a: object
     elem_b: object
@@ -478,6 +479,8 @@ class _Subproblem(NamedTuple):
 
 
 class _Verdict:
+    """A touching point on both trimmed elements (YES), off one of them (NO), or too close to a trim to say."""
+
     YES, NO, UNDECIDED = 1, 0, -1
 
 
@@ -499,9 +502,9 @@ class _Numeric:
     def at(self, expr_matrix, t0):
         t = self.pair.t
         rows, cols = expr_matrix.shape
-        return self.mp.matrix([[self._value(expr_matrix[i, j], t, t0) for j in range(cols)] for i in range(rows)])
+        return self.mp.matrix([[self.value(expr_matrix[i, j], t, t0) for j in range(cols)] for i in range(rows)])
 
-    def _value(self, e, t, t0):
+    def value(self, e, t, t0):
         p = self.sp.Poly(e, t)
         acc = self.mp.mpf(0)
         for c in p.all_coeffs():
@@ -616,7 +619,7 @@ class _Solver:
         self.num = _Numeric(self.sp, self.mp, self.pair)
         self.lam = self.sp.Symbol("lam")
 
-    # each builder returns polys and a checker giving (verdict, point in A's frame, element names)
+    # each builder returns a _Subproblem: its polynomials in t, and the check of a root t0
 
     def subproblems(self):
         a, b = self.a, self.b
@@ -986,7 +989,7 @@ class _Solver:
                 for h in signs:
                     if h is own:       # t0 is this polynomial's own root: exactly 0, on the trim's border
                         continue
-                    value = self.num._value(h.as_expr(), t, t0)
+                    value = self.num.value(h.as_expr(), t, t0)
                     size = sum(abs(c) for c in h.all_coeffs())
                     if value > TIE * size:
                         worst = _Verdict.NO

@@ -605,6 +605,8 @@ def bfirst_time(C, DS, DT, errs, t_end, max_boxes=MAX_BOXES):
             if leaf_lo < 0.0 or t0 < leaf_lo:
                 leaf_lo = t0
                 est = 0.5 * (t0 + t1)
+                if hi < 0.0:
+                    s_est = sm  # no proof yet: the earliest leaf's s is where the witness is
             band_end = max(band_end, t1)
             continue
         n = _halve(hs0, hs1, ht0, ht1, hm, n, s0, s1, t0, t1, mask, DS, DT, buf)

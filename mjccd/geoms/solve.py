@@ -21,7 +21,7 @@ from mjccd.geoms import kernel as kn
 from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
 from mjccd.geoms.shapes import kind_and_size
-from mjccd.motion import Ball, Chain, Fixed, Free, Hinge, Motion, Rigid, Slide, Static
+from mjccd.motion import Ball, Chain, Fixed, Free, Hinge, LinearAffine, Motion, Rational, Rigid, Slide, Static
 from mjccd.plane import Plane, plane_first_contact, solve_plane
 from mjccd.quadric import Ellipsoid, quat_to_matrix
 
@@ -77,6 +77,10 @@ def motion_rows(motion, field="motion"):
         return _pose_row(motion.position0, motion.quaternion0, motion.position1, motion.quaternion1)[None, :]
     if type(motion) is Chain:
         return np.array([_element_rows(e) for e in motion.elements])
+    if isinstance(motion, (Rational, LinearAffine)):
+        raise InputError(f"{field}: the compiled geom solvers take Static, Rigid and Chain motions; a "
+                         f"{type(motion).__name__} motion's first contact comes from geom_first_contact (the "
+                         f"composite quadric solver), its intervals from none")
     if isinstance(motion, Motion):
         raise InputError(f"{field}: a {type(motion).__name__} motion does not keep MuJoCo's shapes rigid; "
                          f"the geom solvers take Static, Rigid and Chain motions")
@@ -205,16 +209,38 @@ def _kernel_contact(out, ka, kb):
                    elements=elements)
 
 
+def _composite_first_contact(shape_a, motion_a, shape_b, motion_b, t_max):
+    """A pair under a :class:`mjccd.Rational` or :class:`mjccd.LinearAffine` motion: the shapes as composite
+    quadric models (:mod:`mjccd.geoms.cqm`, exact elimination; seconds, not microseconds)."""
+    from mjccd.geoms import cqm
+    models = []
+    for shape, field in ((shape_a, "a"), (shape_b, "b")):
+        kind, size = kind_and_size(shape, f"{field}.shape")
+        if kind == sy.PLANE:
+            raise InputError(f"{field}.shape: a plane (HalfSpace) is not taken beside a Rational or LinearAffine "
+                             f"motion (the composite quadric solver needs bounded shapes)")
+        models.append({sy.SPHERE: lambda: cqm.ellipsoid_model(size[0], size[0], size[0]),
+                       sy.CAPSULE: lambda: cqm.capsule(size[0], size[1]),
+                       sy.CYLINDER: lambda: cqm.capped_cylinder(size[0], size[0], size[1]),
+                       sy.BOX: lambda: cqm.box(*size),
+                       sy.ELLIPSOID: lambda: cqm.ellipsoid_model(*size)}[kind]())
+    return cqm.cqm_first_contact(models[0], motion_a, models[1], motion_b, t_max=t_max)
+
+
 def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     """First contact of two moving MuJoCo shapes over [0, t_max] as a :class:`mjccd.Contact`, or None.
 
     ``shape_a``, ``shape_b``: :class:`Sphere`, :class:`Capsule`,
     :class:`Cylinder`, :class:`Box`, :class:`mjccd.Ellipsoid` or
     :class:`HalfSpace`; motions: :class:`mjccd.Static`, :class:`mjccd.Rigid`
-    or :class:`mjccd.Chain`.  The contact carries the touching ``elements``
-    of each shape; an uncertain answer carries the bracket that holds every
-    possible first contact.
+    or :class:`mjccd.Chain` (the compiled kernel, microseconds), or
+    :class:`mjccd.Rational` and :class:`mjccd.LinearAffine` (the composite
+    quadric solver, :mod:`mjccd.geoms.cqm`: exact, seconds; no planes).  The
+    contact carries the touching ``elements`` of each shape; an uncertain
+    answer carries the bracket that holds every possible first contact.
     """
+    if isinstance(motion_a, (Rational, LinearAffine)) or isinstance(motion_b, (Rational, LinearAffine)):
+        return _composite_first_contact(shape_a, motion_a, shape_b, motion_b, t_max)
     out, (ka, sa, kb, sb) = solve_geoms(shape_a, motion_a, shape_b, motion_b, t_max=t_max)
     if out[kn.FAILED] == 0.0:
         return _kernel_contact(out, ka, kb)

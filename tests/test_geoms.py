@@ -301,3 +301,42 @@ def test_intervals_of_a_cylinder_passing_through_another_are_certified(turn):
     t_in, t_out = (2.0 - reach) / 4.0, (2.0 + reach) / 4.0
     assert certified and len(iv) == 1
     assert abs(iv[0][0] - t_in) <= 1e-6 and abs(iv[0][1] - t_out) <= 1e-6
+
+
+def test_the_contact_point_lies_on_both_surfaces():
+    """Random turning pairs of every primitive: each certified first contact's point lies on both shapes'
+    surfaces (their exact signed distances, tests/geoms_reference.py).  A circle's witness taken at s = 1/2
+    put it up to 0.14 off both rims on about one pair in ten that met rim to rim."""
+    from geoms_reference import _prepared, local_sdf
+    from mjccd.quadric import quat_to_matrix
+
+    rng = np.random.default_rng(29)
+    kinds = {"sphere": lambda r: (Sphere(r[0]), {"type": "sphere", "radius": r[0]}),
+             "capsule": lambda r: (Capsule(r[0], r[1]), {"type": "capsule", "radius": r[0], "half_length": r[1]}),
+             "cylinder": lambda r: (Cylinder(r[0], r[1]), {"type": "cylinder", "radius": r[0], "half_length": r[1]}),
+             "box": lambda r: (Box(r), {"type": "box", "half_sizes": list(r)}),
+             "ellipsoid": lambda r: (mjccd.Ellipsoid(r), {"type": "ellipsoid", "radii": list(r)})}
+
+    def unit(v):
+        return v / np.linalg.norm(v)
+
+    checked = 0
+    for n in range(300):
+        names = list(kinds)
+        (ga, da), (gb, db) = (kinds[names[rng.integers(5)]](rng.uniform(0.2, 0.6, 3)) for _ in range(2))
+        d = unit(rng.normal(size=3))
+        ends = [(rng.uniform(-0.2, 0.2, 3), unit(rng.normal(size=4)), rng.uniform(-0.2, 0.2, 3),
+                 unit(rng.normal(size=4))),
+                (d * 2.5 + rng.uniform(-0.3, 0.3, 3), unit(rng.normal(size=4)), -d * 0.5 + rng.uniform(-0.3, 0.3, 3),
+                 unit(rng.normal(size=4)))]
+        motions = [mjccd.Rigid(*e) for e in ends]
+        c = geom_first_contact(ga, motions[0], gb, motions[1])
+        if c is None or c.certainty != "certified" or c.time == 0.0:
+            continue
+        for shape, m in ((da, motions[0]), (db, motions[1])):
+            q = (1 - c.time) * m.quaternion0 + c.time * m.quaternion1
+            p = (1 - c.time) * m.position0 + c.time * m.position1
+            local = quat_to_matrix(q / np.linalg.norm(q)).T @ (c.point - p)
+            assert abs(local_sdf(_prepared(shape), local)) <= 1e-7, (n, shape, c)
+        checked += 1
+    assert checked >= 200

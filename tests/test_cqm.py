@@ -265,3 +265,14 @@ def test_geom_first_contact_takes_rational_motions_through_the_composite_solver(
     np.testing.assert_array_equal(c.point, d.point)
     with pytest.raises(InputError, match=r"a.shape"):
         geom_first_contact(HalfSpace(), mjccd.Static([0, 0, 0]), Sphere(0.3), turning)
+
+
+def test_ellipsoids_under_a_rational_motion_agree_with_the_ellipsoid_core():
+    """Example 6.4's rational motion carries an ellipsoid past another: the composite solver and the ellipsoid
+    core (mjccd.first_contact, its own exact tiers) give the same time."""
+    _, _, _, motion_b = example_6_4()
+    motion_a = mjccd.Rigid([31, 21, 1], IDENTITY, [-29, 18, -1], IDENTITY)
+    e = mjccd.first_contact(mjccd.Ellipsoid([4, 6, 5]), motion_a, mjccd.Ellipsoid([7, 3, 5]), motion_b)
+    c = cqm.cqm_first_contact(cqm.ellipsoid_model(4, 6, 5), motion_a, cqm.ellipsoid_model(7, 3, 5), motion_b)
+    assert e.certainty == c.certainty == "certified" and abs(e.time - c.time) < 1e-12
+    np.testing.assert_allclose(c.point, e.point, atol=1e-6)

@@ -663,7 +663,7 @@ class _Solver:
         with mp.workdps(DIGITS):
             half = mp.mpf(1) / 2
             An, Bn = self.num.at(A, half), self.num.at(B, half)
-            coeffs = self._char_coeffs(An, Bn) if A.rows == 4 else self._cubic_coeffs(An, Bn)
+            coeffs = self._pencil_coeffs(An, Bn)
             try:
                 for l0 in _double_roots(mp, coeffs):
                     if any(_dehomogenise(mp, X) is not None for X in _null_points(mp, l0 * An - Bn, An)):
@@ -695,7 +695,7 @@ class _Solver:
 
         def check(t0):
             An, Bn = self.num.at(A, t0), self.num.at(B, t0)
-            f = self._char_coeffs(An, Bn)
+            f = self._pencil_coeffs(An, Bn)
             if max(abs(c) for c in f) <= mp.mpf(10) ** (-DIGITS // 2) * (1 + mp.mnorm(Bn, 1)) ** 4:
                 return [self._singular_pencil(An, Bn)]
             out = []
@@ -721,20 +721,22 @@ class _Solver:
         """Two ellipses (3x3, inside <= 0) are apart when det(lam C1 - C2) has two distinct negative roots
         (thesis, chapter 2), decided with a margin far above the working precision."""
         mp = self.mp
-        f3 = self._cubic_coeffs(C1, C2)
+        f3 = self._pencil_coeffs(C1, C2)
         roots = _roots(mp, f3)
         real = sorted(mp.re(r) for r in roots if abs(mp.im(r)) <= mp.mpf(10) ** (-20) * (1 + abs(r)))
         negative = [r for r in real if r < 0]
         return len(negative) >= 2 and negative[1] - negative[0] > mp.mpf(10) ** (-15) * (1 + abs(negative[0]))
 
-    def _char_coeffs(self, An, Bn):
-        """Coefficients (highest first) of det(lam An - Bn), from its values at 5 points."""
+    def _pencil_coeffs(self, An, Bn):
+        """Coefficients (highest first) of det(lam An - Bn) (n x n, so of degree n), from its values at n + 1
+        points."""
         mp = self.mp
-        xs = [mp.mpf(k) for k in (-2, -1, 0, 1, 2)]
+        n = An.rows
+        xs = [mp.mpf(k - n // 2) for k in range(n + 1)]
         ys = [_mp_det(x * An - Bn) for x in xs]
-        V = mp.matrix([[x ** (4 - k) for k in range(5)] for x in xs])
+        V = mp.matrix([[x ** (n - k) for k in range(n + 1)] for x in xs])
         c = mp.lu_solve(V, mp.matrix(ys))
-        return [c[k] for k in range(5)]
+        return [c[k] for k in range(n + 1)]
 
     def _verify(self, X, trims_a, trims_b, in_a):
         """The verdict of a touching point X (homogeneous, in A's frame when in_a, else in B's)."""
@@ -801,7 +803,7 @@ class _Solver:
 
             def point(t0):
                 En, Cn = self.num.at(E, t0), self.num.at(C, t0)
-                f3 = self._cubic_coeffs(En, Cn)
+                f3 = self._pencil_coeffs(En, Cn)
                 out = []
                 for l0 in _double_roots(mp, f3):
                     out += _null_points(mp, l0 * En - Cn, En)
@@ -845,13 +847,6 @@ class _Solver:
                 out[i, j] = (-1) ** (i + j) * (M[r0, c0] * M[r1, c1] - M[r0, c1] * M[r1, c0])
         return out
 
-    def _cubic_coeffs(self, En, Cn):
-        mp = self.mp
-        xs = [mp.mpf(k) for k in (-1, 0, 1, 2)]
-        ys = [_mp_det(x * En - Cn) for x in xs]
-        V = mp.matrix([[x ** (3 - k) for k in range(4)] for x in xs])
-        c = mp.lu_solve(V, mp.matrix(ys))
-        return [c[k] for k in range(4)]
 
     def _edge_edge(self, ea, eb):
         """Edge ea of A against edge eb of B, in B's frame: the two curves' traces on the line where their planes
@@ -1157,7 +1152,7 @@ def _trim_sign(sp, g, X):
 def _world_bound(sp, M, bound):
     """The centre and a radius of a world ball holding a model of this local bound, at t = 0."""
     M0 = np.array(M.subs(sp.Symbol("t"), 0).evalf(30).tolist(), dtype=float)
-    L, v, w = M0[:3, :3] / M0[3, 3], M0[:3, 3] / M0[3, 3], M0[3, 3]
+    L, v = M0[:3, :3] / M0[3, 3], M0[:3, 3] / M0[3, 3]
     return v, bound * np.linalg.norm(L, 2) * (1 + 1e-9) + 1e-9
 
 

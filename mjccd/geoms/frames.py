@@ -18,9 +18,7 @@ from the world down, as :class:`mjccd.Chain` composes them:
 
 A rotation by an unnormalised quaternion q is ``rot(q) / |q|^2`` with
 ``rot(q) rot(q)^T = |q|^4 I`` exactly, so its inverse is the transpose and
-costs no extra degree.  :func:`rational_frame` takes a rational motion whose
-rotation is orthogonal only up to rounding; its inverse is formed with the
-adjugate, which is exact for the forward map as given.
+costs no extra degree.
 """
 import numpy as np
 
@@ -150,48 +148,6 @@ def relative(W, I, Fa, Fb):
         out[V0 + i] = P.add(W, I, gv, P.mul(W, I, Fa[H0 + i], Fb[M0]), 1.0)
     out[M0] = P.mul(W, I, Fa[GW], Fb[M0])
     return out
-
-
-@jit
-def rational_frame(W, I, rot, rot_err, rd, rd_err, tr, tr_err, td, td_err):
-    """The frame of a rational motion ``x = (rot / rd) y + tr / td`` from Bernstein coefficients (rot (3, 3, n),
-    rd (n,), tr (3, k), td (k,)) with bounds of their conversion's errors; the inverse by the
-    adjugate: ``y = rd adj(rot) (td x - tr) / (det(rot) td)``."""
-    F = np.empty(FRAME, dtype=np.int64)
-    R = np.empty(9, dtype=np.int64)
-    for i in range(3):
-        for j in range(3):
-            R[3 * i + j] = P.from_coefficients(W, I, rot[i, j], rot_err[i, j])
-    d = P.from_coefficients(W, I, rd, rd_err)
-    e = P.from_coefficients(W, I, td, td_err)
-    T = np.empty(3, dtype=np.int64)
-    for i in range(3):
-        T[i] = P.from_coefficients(W, I, tr[i], tr_err[i])
-    # forward: [[rot td, tr rd], [0, rd td]]
-    for k in range(9):
-        F[L0 + k] = P.mul(W, I, R[k], e)
-    for i in range(3):
-        F[V0 + i] = P.mul(W, I, T[i], d)
-    F[M0] = P.mul(W, I, d, e)
-    # adjugate of rot: adj[i, j] = cofactor of rot[j, i]
-    A = np.empty(9, dtype=np.int64)
-    for i in range(3):
-        for j in range(3):
-            r0, r1 = (1 if j == 0 else 0), (1 if j == 2 else 2)
-            c0, c1 = (1 if i == 0 else 0), (1 if i == 2 else 2)
-            minor = P.add(W, I, P.mul(W, I, R[3 * r0 + c0], R[3 * r1 + c1]),
-                          P.mul(W, I, R[3 * r0 + c1], R[3 * r1 + c0]), -1.0)
-            A[3 * i + j] = minor if (i + j) % 2 == 0 else P.scale(W, I, minor, -1.0)
-    det = P.dot3(W, I, R[0], R[1], R[2], A[0], A[3], A[6])
-    # inverse: y = rd adj (td x - tr) / (det td): [[rd td adj, -rd adj tr], [0, det td]]
-    de = P.mul(W, I, d, e)
-    for k in range(9):
-        F[G0 + k] = P.mul(W, I, A[k], de)
-    for i in range(3):
-        F[H0 + i] = P.scale(W, I, P.mul(W, I, P.dot3(W, I, A[3 * i], A[3 * i + 1], A[3 * i + 2], T[0], T[1], T[2]),
-                                        d), -1.0)
-    F[GW] = P.mul(W, I, det, e)
-    return F
 
 
 @jit

@@ -182,18 +182,6 @@ def linear(W, I, v0, v1):
     return k
 
 
-@jit
-def from_coefficients(W, I, c, e):
-    """A slot holding Bernstein coefficients ``c`` whose errors are bounded by ``e``."""
-    k = alloc(W, I, c.shape[0] - 1)
-    for i in range(c.shape[0]):
-        W[k, 0, i] = c[i]
-        W[k, 1, i] = e[i]
-        if _dd(W):
-            W[k, 2, i] = 0.0
-    return k
-
-
 @_inline
 def _elevate_into(W, a, m, n, dst):
     """Slot a (degree m) elevated to degree n, coefficients and bounds, written into slot dst: each step

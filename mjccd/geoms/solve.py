@@ -178,15 +178,48 @@ def _earliest(contacts):
     return first._replace(time=lo, certainty="uncertain", bracket=(lo, hi))
 
 
-def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
-    """The kernel's answer array (see :func:`mjccd.geoms.kernel.pair_kernel`) for a validated pair."""
+def _two_poses(motion):
+    """(p0, q0, p1, q1) of a Static or Rigid motion (validated when it was made); None for any other."""
+    kind = type(motion)
+    if kind is Rigid:
+        return motion.position0, motion.quaternion0, motion.position1, motion.quaternion1
+    if kind is Static:
+        return motion.position, motion.quaternion, motion.position, motion.quaternion
+    return None
+
+
+_POSE_KIND = np.array([float(fr.POSE)])
+
+
+def _pose_rows_from(poses, origin):
+    """The one element row of a two-pose motion seen from ``origin``: as ``shifted_rows(motion_rows(m),
+    origin)``, bit for bit, in one allocation (the common case of a pair query: no plane, no chain)."""
+    p0, q0, p1, q1 = poses
+    return np.concatenate((_POSE_KIND, p0 - origin, q0, p1 - origin, q1))[None, :]
+
+
+def _rows_and_origin(shape_a, motion_a, shape_b, motion_b):
+    """(ka, sa, rows_a, kb, sb, rows_b, origin) of a pair: both motions' element rows seen from ``origin`` (the
+    start of the first body that is not a plane), every field validated."""
+    ka, sa = kind_and_size(shape_a, "a.shape")
+    kb, sb = kind_and_size(shape_b, "b.shape")
+    poses_a, poses_b = _two_poses(motion_a), _two_poses(motion_b)
+    if poses_a is not None and poses_b is not None and ka != sy.PLANE and kb != sy.PLANE:
+        origin = poses_a[0]
+        return ka, sa, _pose_rows_from(poses_a, origin), kb, sb, _pose_rows_from(poses_b, origin), origin
     ka, sa, ra = _check(shape_a, motion_a, "a")
     kb, sb, rb = _check(shape_b, motion_b, "b")
     if ka == sy.PLANE and kb == sy.PLANE:
         raise InputError("b.shape: two planes are not a pair MuJoCo collides")
     origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
+    return ka, sa, shifted_rows(ra, origin), kb, sb, shifted_rows(rb, origin), origin
+
+
+def solve_geoms(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
+    """The kernel's answer array (see :func:`mjccd.geoms.kernel.pair_kernel`) for a validated pair."""
+    ka, sa, rows_a, kb, sb, rows_b, origin = _rows_and_origin(shape_a, motion_a, shape_b, motion_b)
     out = np.empty(kn.OUT)
-    kn.pair_kernel(ka, sa, shifted_rows(ra, origin), kb, sb, shifted_rows(rb, origin), float(t_max), *workspaces(), out)
+    kn.pair_kernel(ka, sa, rows_a, kb, sb, rows_b, float(t_max), *workspaces(), out)
     if out[kn.FAILED] == kn.OVERFLOW:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace (a chain too deep for its degree limit {P.MAX_DEGREE})")
@@ -288,14 +321,9 @@ def geom_collision_intervals(shape_a, motion_a, shape_b, motion_b):
     every end is proven within 1e-9 (otherwise an interval may be a graze
     that does not happen, or ends may be wider apart).
     """
-    ka, sa, ra = _check(shape_a, motion_a, "a")
-    kb, sb, rb = _check(shape_b, motion_b, "b")
-    if ka == sy.PLANE and kb == sy.PLANE:
-        raise InputError("b.shape: two planes are not a pair MuJoCo collides")
-    origin = ra[0, 1:4].copy() if ka != sy.PLANE else rb[0, 1:4].copy()
+    ka, sa, rows_a, kb, sb, rows_b, _ = _rows_and_origin(shape_a, motion_a, shape_b, motion_b)
     out = np.empty((kn.MAX_RUNS, 7))
-    count, certified, _, code = kn.pair_runs(ka, sa, shifted_rows(ra, origin), kb, sb, shifted_rows(rb, origin), 1.0,
-                                             *workspaces(), out)
+    count, certified, _, code = kn.pair_runs(ka, sa, rows_a, kb, sb, rows_b, 1.0, *workspaces(), out)
     if code < 0:
         raise RuntimeError(f"{sy.KIND_NAMES[ka]}-{sy.KIND_NAMES[kb]}: the pair's polynomials outgrew the solver's "
                            f"workspace")

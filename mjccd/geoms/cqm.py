@@ -21,7 +21,8 @@ makes the answer ``uncertain``, with a bracket from that root to the next proven
 contact is ever certified wrongly.
 
 The status at t = 0 is found with the same solver: the second model approaches its start pose along a world axis
-from beyond both bounding balls; an approach free of contact proves them separate.
+from beyond both bounding balls; an approach free of contact proves them separate.  The contact intervals
+(:func:`cqm_collision_intervals`) come from every proven touch and the status between two of them.
 """
 import math
 from fractions import Fraction
@@ -157,12 +158,14 @@ class CompositeQuadric:
     """A solid bounded by quadric and planar faces, conic and line edges and vertices (the thesis' CQM).
 
     ``bound``: the radius of a ball about the local origin that holds the solid (the start status approaches
-    from beyond it; each vertex is checked against it).  Every element is closed: its trims hold with equality
-    on its border.
+    from beyond it; each vertex is checked against it).  ``convex``: the solid is convex (MuJoCo's shapes are),
+    which lets the start status decide more (see :func:`_status_at`).  Every element is closed: its trims hold
+    with equality on its border.
     """
 
-    def __init__(self, faces, edges=(), vertices=(), *, bound, name="model"):
+    def __init__(self, faces, edges=(), vertices=(), *, bound, name="model", convex=False):
         self.name = str(name)
+        self.convex = bool(convex)
         self.bound = float(_positive(bound, f"{name}.bound"))
         self.faces = tuple(self._face(f, f"{name}.faces[{i}]") for i, f in enumerate(faces))
         self.edges = tuple(self._edge(e, f"{name}.edges[{i}]") for i, e in enumerate(edges))
@@ -205,14 +208,14 @@ def capped_cylinder(a, b, half_length, *, name="cylinder"):
     return CompositeQuadric(
         [Face(side, (top, bottom), "side"), Face(bottom, (side,), "face -z"), Face(top, (side,), "face +z")],
         [Edge(bottom, side, (), "rim -z"), Edge(top, side, (), "rim +z")],
-        bound=_norm(max(number(a, "a"), number(b, "b")), h), name=name)
+        bound=_norm(max(number(a, "a"), number(b, "b")), h), name=name, convex=True)
 
 
 def ellipsoid_model(a, b, c, *, name="ellipsoid"):
     """An ellipsoid (a sphere when a == b == c): one face."""
     return CompositeQuadric([Face(ellipsoid(a, b, c), (), "surface")],
                             bound=float(max(number(a, "a"), number(b, "b"), number(c, "c"))) * (1 + 1e-9),
-                            name=name)
+                            name=name, convex=True)
 
 
 def capsule(radius, half_length, *, name="capsule"):
@@ -227,7 +230,8 @@ def capsule(radius, half_length, *, name="capsule"):
     return CompositeQuadric(
         [Face(side, (top, bottom), "side"), Face(ends[0], (outside(top),), "cap +z"),
          Face(ends[1], (outside(bottom),), "cap -z")],
-        [Edge(top, side, (), "rim +z"), Edge(bottom, side, (), "rim -z")], bound=_norm(r, h + r), name=name)
+        [Edge(top, side, (), "rim +z"), Edge(bottom, side, (), "rim -z")], bound=_norm(r, h + r), name=name,
+        convex=True)
 
 
 def box(hx, hy, hz, *, name="box"):
@@ -257,7 +261,7 @@ def box(hx, hy, hz, *, name="box"):
             for sz in (1, -1):
                 vertices.append(Vertex((sx * h[0], sy * h[1], sz * h[2]), "vertex " + "".join(
                     ("+" if v > 0 else "-") + axis for v, axis in zip((sx, sy, sz), label))))
-    return CompositeQuadric(faces, edges, vertices, bound=_norm(*h), name=name)
+    return CompositeQuadric(faces, edges, vertices, bound=_norm(*h), name=name, convex=True)
 
 
 def _norm(*xs):
@@ -825,17 +829,59 @@ class _Solver:
 
     def _coplanar_face(self, f, En, P, t0, flipped):
         """A plane face in the plane of a conic edge at t0: no touching point when the edge's ellipse is apart
-        from the ellipse a quadric trim leaves of the face (thesis, chapter 2); else undecided."""
+        from the ellipse a quadric trim leaves of the face (thesis, chapter 2), or lies wholly beyond a plane
+        trim; else undecided."""
         mp = self.mp
         T = self._current[1] if flipped else self._current[0]     # the edge's frame -> the face's frame
         Pn = self.num.at(P, t0)
+        TP = T * Pn
         for g in f.trims:
             if g.is_plane:
+                row = mp.matrix([[mp.mpf(x.numerator) / x.denominator for x in g.form]])
+                if self._beside_line(En, row * TP, TP[3, :]) > 0:
+                    return []
                 continue
             G = mp.matrix([[mp.mpf(x.numerator) / x.denominator for x in row] for row in g.form])
             if self._ellipses_apart(Pn.T * T.T * G * T * Pn, En):
                 return []
         raise _Undecided
+
+    def _beside_line(self, E, ell, weight):
+        """Which side of the line ``ell . u = 0`` the ellipse ``u^T E u <= 0`` lies on, in a plane's homogeneous
+        coordinates u whose point has the weight ``weight . u`` (rows of 3, mp): +1 wholly where ell . u > 0
+        (at weight 1), -1 wholly where it is < 0, 0 when the line meets it, it is no real ellipse, or the
+        working precision cannot tell."""
+        mp = self.mp
+        j = max(range(3), key=lambda i: abs(weight[i]))
+        if weight[j] == 0:
+            return 0
+        Q = mp.zeros(3, 3)             # columns: two directions of weight 0, then a point of weight 1
+        for col, i in enumerate(i for i in range(3) if i != j):
+            Q[i, col], Q[j, col] = 1, -weight[i] / weight[j]
+        Q[j, 2] = 1 / weight[j]
+        Ea, la = Q.T * E * Q, ell * Q
+        if Ea[0, 0] < 0:
+            Ea = -Ea
+        det = Ea[0, 0] * Ea[1, 1] - Ea[0, 1] ** 2
+        scale = mp.mnorm(Ea, 1)
+        tiny = mp.mpf(10) ** (-DIGITS // 3)
+        if not (Ea[0, 0] > tiny * scale and det > tiny * scale ** 2):
+            return 0
+        inv = mp.matrix([[Ea[1, 1], -Ea[0, 1]], [-Ea[0, 1], Ea[0, 0]]]) / det
+        b = mp.matrix([Ea[0, 2], Ea[1, 2]])
+        c = -(inv * b)
+        k = (c.T * mp.matrix([[Ea[0, 0], Ea[0, 1]], [Ea[0, 1], Ea[1, 1]]]) * c)[0] - Ea[2, 2]
+        if not k > tiny * scale * (1 + mp.norm(c) ** 2):
+            return 0
+        g = mp.matrix([la[0], la[1]])
+        centre = la[0] * c[0] + la[1] * c[1] + la[2]
+        half = mp.sqrt(k * (g.T * inv * g)[0])
+        margin = tiny * (abs(centre) + half + mp.norm(la))
+        if centre - half > margin:
+            return 1
+        if centre + half < -margin:
+            return -1
+        return 0
 
     def _adjugate(self, M):
         """adj(M) of a 3x3 mp matrix, by cofactors (exact for a singular M)."""
@@ -931,8 +977,15 @@ class _Solver:
 
     def _coplanar(self, ea, eb, ca, da, cb, db, P, t0):
         """Both edges in one plane at t0: two ellipses there are apart when their pencil has two distinct
-        negative roots (thesis, chapter 2); anything else stays undecided."""
-        if da == 1 or db == 1:
+        negative roots (thesis, chapter 2), a line and an ellipse when the line misses it; anything else stays
+        undecided."""
+        if da == 1 and db == 1:
+            return [(_Verdict.UNDECIDED, None)]
+        if da == 1 or db == 1:       # a line and an ellipse: apart when the line misses it
+            line, conic = (ca, cb) if da == 1 else (cb, ca)
+            weight = self.num.at(P, t0)[3, :]
+            if self._beside_line(self.num.at(conic, t0), self.num.at(line, t0), weight) != 0:
+                return [(_Verdict.NO, None)]
             return [(_Verdict.UNDECIDED, None)]
         if self._ellipses_apart(self.num.at(ca, t0), self.num.at(cb, t0)):
             return [(_Verdict.NO, None)]
@@ -996,14 +1049,15 @@ class _Solver:
                     return (time, time, None, ((worst, x, sub), t0))
         return None
 
-    def first(self, t_max):
-        """(time, point in A's frame or None, (name_a, name_b), certainty, bracket) of the first contact over
-        [0, t_max], or None."""
-        sp, mp = self.sp, self.mp
-        candidates, undecided, undecided_at = [], None, mp.mpf(0)
+    def _candidates(self, t_max):
+        """(candidates, throughout): every subproblem root in [0, t_max] as (lo, hi, square-free poly, subproblem)
+        sorted by its isolating interval (a persistent touch as (time, time, None, (verdict, t0))), and whether
+        some subproblem is undecided for every t."""
+        sp = self.sp
+        candidates, throughout = [], False
         for sub in self.subproblems():
             if sub.polys is None:
-                undecided = 0.0 if undecided is None else min(undecided, 0.0)
+                throughout = True
                 continue
             for p in sub.polys:
                 if p.is_zero:
@@ -1015,21 +1069,32 @@ class _Solver:
                 for (lo, hi), _ in q.intervals(inf=0, sup=sp.Rational(Fraction(t_max)), eps=1e-9):
                     candidates.append((lo, hi, q, sub))
         candidates.sort(key=lambda c: c[0])
+        return candidates, throughout
+
+    def _verdicts(self, lo, hi, q, sub):
+        """(verdicts, t0, sub) of one candidate: its time t0 to 1e-50 and the [(verdict, point)] of the touching
+        points there (at the working precision)."""
+        if q is None:         # a persistent touch, already tested: sub holds its verdict and time
+            verdicts, t0 = sub
+            return [verdicts[:2]], t0, verdicts[2]
+        t0 = refine_root(q, lo, hi)
+        self._current = (self.num.at(self.pair.to_a, t0), self.num.at(self.pair.to_b, t0))
+        try:
+            return sub.check(t0), t0, sub
+        except _Undecided:
+            return [(_Verdict.UNDECIDED, None)], t0, sub
+
+    def first(self, t_max):
+        """(time, point in A's frame or None, (name_a, name_b), certainty, bracket) of the first contact over
+        [0, t_max], or None."""
+        mp = self.mp
+        candidates, throughout = self._candidates(t_max)
+        undecided, undecided_at = (0.0, mp.mpf(0)) if throughout else (None, mp.mpf(0))
         with mp.workdps(DIGITS):
             for lo, hi, q, sub in candidates:
                 if undecided is not None and mp.mpf(lo.p) / lo.q > undecided_at:
                     break     # strictly after an undecided candidate: the bracket's end is all it can give
-                if q is None:         # a persistent touch, already tested: sub holds its verdict and time
-                    verdicts, t0 = sub
-                    sub = verdicts[2]
-                    verdicts = [verdicts[:2]]
-                else:
-                    t0 = refine_root(q, lo, hi)
-                    self._current = (self.num.at(self.pair.to_a, t0), self.num.at(self.pair.to_b, t0))
-                    try:
-                        verdicts = sub.check(t0)
-                    except _Undecided:
-                        verdicts = [(_Verdict.UNDECIDED, None)]
+                verdicts, t0, sub = self._verdicts(lo, hi, q, sub)
                 if any(v == _Verdict.YES for v, _ in verdicts):
                     x = next(p for v, p in verdicts if v == _Verdict.YES)
                     time = float(t0)
@@ -1043,6 +1108,23 @@ class _Solver:
         if undecided is not None:
             return (undecided, None, None, None, "uncertain", (undecided, float(t_max)))
         return None
+
+    def events(self, t_max):
+        """(touches, undecided, throughout): every time in [0, t_max] at which two elements are proven to touch,
+        the times whose test 60 digits left undecided (both sorted, mp numbers), and whether a subproblem is
+        undecided for every t.  Whenever the two solids start or stop meeting, they touch: so every end of
+        their contact intervals is among these times."""
+        mp = self.mp
+        candidates, throughout = self._candidates(t_max)
+        touches, undecided = [], []
+        with mp.workdps(DIGITS):
+            for lo, hi, q, sub in candidates:
+                verdicts, t0, _ = self._verdicts(lo, hi, q, sub)
+                if any(v == _Verdict.YES for v, _ in verdicts):
+                    touches.append(t0)
+                elif any(v == _Verdict.UNDECIDED for v, _ in verdicts):
+                    undecided.append(t0)
+        return sorted(touches), sorted(undecided), throughout
 
     def _touch(self, sub, x, t0):
         """The world point of the touch (x: in A's frame) and the unit normal outward from A, from the face that
@@ -1149,26 +1231,30 @@ def _trim_sign(sp, g, X):
     return sp.expand((X.T * m * X)[0, 0])
 
 
-def _world_bound(sp, M, bound):
-    """The centre and a radius of a world ball holding a model of this local bound, at t = 0."""
-    M0 = np.array(M.subs(sp.Symbol("t"), 0).evalf(30).tolist(), dtype=float)
+def _world_bound(sp, M, bound, tau):
+    """The centre and a radius of a world ball holding a model of this local bound, at t = tau."""
+    M0 = np.array(M.subs(sp.Symbol("t"), tau).evalf(30).tolist(), dtype=float)
     L, v = M0[:3, :3] / M0[3, 3], M0[:3, 3] / M0[3, 3]
     return v, bound * np.linalg.norm(L, 2) * (1 + 1e-9) + 1e-9
 
 
-def _start_status(a, b, MA, MB):
-    """"separate" when B can approach its start pose in a straight line, from beyond both bounding balls, without
-    touching A (proven); "touching" when an approach touches only at its end; "overlapping" when every
-    approach meets A before its end (a body shut in another's cavity without touching it would read so); None
-    when an approach is undecided and none is free."""
+def _status_at(a, b, MA, MB, tau=0):
+    """The two models' status at the exact time ``tau`` (a sympy Rational): "separate" when B can approach its
+    pose there in a straight line, from beyond both bounding balls, without touching A (proven); "touching"
+    when an approach touches only at its end; "overlapping" when every approach meets A before its end (a body
+    shut in another's cavity without touching it would read so).  Two convex models that are apart have a
+    separating plane, and of two opposite approaches one comes from its side and is free: so where both of a
+    pair of opposite approaches are proven to meet A, they are not apart, whatever another approach left
+    undecided.  None when an approach is undecided and nothing else decides."""
     sp, _ = _sympy()
     t = sp.Symbol("t")
-    A0 = (MA[0].subs(t, 0), MA[1].subs(t, 0))
-    B0, B0_inverse = MB[0].subs(t, 0), MB[1].subs(t, 0)
-    ca, ra = _world_bound(sp, MA[0], a.bound)
-    cb, rb = _world_bound(sp, MB[0], b.bound)
+    A0 = (MA[0].subs(t, tau), MA[1].subs(t, tau))
+    B0, B0_inverse = MB[0].subs(t, tau), MB[1].subs(t, tau)
+    ca, ra = _world_bound(sp, MA[0], a.bound, tau)
+    cb, rb = _world_bound(sp, MB[0], b.bound, tau)
     reach = sp.Rational(Fraction(float(np.linalg.norm(ca - cb)) + ra + rb + 1.0))
     touching = undecided = False
+    meets = []                  # per approach: proven to meet A
     for direction in _APPROACHES:
         shift, back = sp.eye(4), sp.eye(4)
         for i in range(3):
@@ -1178,10 +1264,13 @@ def _start_status(a, b, MA, MB):
         found = _Solver(a, b, A0, approach).first(1.0)
         if found is None:
             return "separate"
+        meets.append(found[4] == "certified")
         if found[4] != "certified":
             undecided = True
         elif found[0] == 1.0:
             touching = True
+    if undecided and a.convex and b.convex and any(meets[k] and meets[k + 1] for k in range(0, len(meets), 2)):
+        undecided = False       # opposite approaches (_APPROACHES lists each with its opposite next)
     if touching:
         return "touching"
     return None if undecided else "overlapping"
@@ -1216,7 +1305,7 @@ def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
         raise InputError(f"t_max: must be in (0, 1], got {t_max}")
     MA = motion_matrix(motion_a, "motion_a", not _is_ball(model_a))
     MB = motion_matrix(motion_b, "motion_b", not _is_ball(model_b))
-    status = _start_status(model_a, model_b, MA, MB)
+    status = _status_at(model_a, model_b, MA, MB)
     if status not in ("separate", None):
         return Contact(0.0, None, None, status)
     found = _Solver(model_a, model_b, MA, MB).first(t_max)
@@ -1227,3 +1316,84 @@ def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
         return None
     time, point, normal, names, certainty, bracket = found
     return Contact(time, point, normal, "separate", certainty, bracket, elements=names)
+
+
+_STRETCH_POINTS = (Fraction(1, 2), Fraction(1, 3), Fraction(2, 3), Fraction(1, 5))
+
+
+def _stretch_status(a, b, MA, MB, lo, hi):
+    """The status of the two models all through the open stretch (lo, hi) (mp numbers) between two times at
+    which they may touch: it does not change there, so the first decided status at one of a few exact times
+    inside it (None when none is)."""
+    sp, mp = _sympy()
+    for f in _STRETCH_POINTS:
+        status = _status_at(a, b, MA, MB, sp.Rational(mp.nstr(lo + (hi - lo) * f.numerator / f.denominator, 55,
+                                                                strip_zeros=False)))
+        if status is not None:
+            return status
+    return None
+
+
+def cqm_collision_intervals(model_a, motion_a, model_b, motion_b):
+    """Every interval of [0, 1] in which two moving composite quadric models touch or overlap.
+
+    Returns (intervals, certified): a sorted list of disjoint (t_in, t_out), a touch that does not last an
+    interval of zero width, and whether every end is proven (within 1e-9).  The ends are among the times at
+    which two elements touch (:meth:`_Solver.events`); between two such times the status does not change, so
+    it is decided once, at an exact time between them, by the approaches of the start status.  A time or a
+    status that 60 digits leave undecided makes the answer uncertain: its stretch is then counted as touching,
+    so that the intervals hold every possible contact.
+    """
+    for m, field in ((model_a, "model_a"), (model_b, "model_b")):
+        if not isinstance(m, CompositeQuadric):
+            raise InputTypeError(f"{field}: expected a CompositeQuadric, got {type(m).__name__}")
+    sp, mp = _sympy()
+    MA = motion_matrix(motion_a, "motion_a", not _is_ball(model_a))
+    MB = motion_matrix(motion_b, "motion_b", not _is_ball(model_b))
+    touches, undecided, throughout = _Solver(model_a, model_b, MA, MB).events(1.0)
+    if throughout:
+        return [(0.0, 1.0)], False
+    certified = True
+    same = mp.mpf(10) ** (-ROOT_DIGITS + 5)     # times closer than the roots' accuracy are one
+    with mp.workdps(DIGITS):
+        cuts = []                                 # [time, touched there, proven]
+        for x, proven in sorted([(x, True) for x in touches] + [(x, False) for x in undecided]):
+            if cuts and x - cuts[-1][0] <= same:
+                cuts[-1][2] = cuts[-1][2] or proven
+            else:
+                cuts.append([x, True, proven])
+        for end in (mp.mpf(0), mp.mpf(1)):        # an end that is no proven touch: its own status (exact there)
+            near = [c for c in cuts if abs(c[0] - end) <= same]
+            if near and near[0][2]:
+                continue
+            status = _status_at(model_a, model_b, MA, MB, sp.Integer(int(end)))
+            if near and status is None:
+                continue                          # still an undecided touch
+            for c in near:
+                cuts.remove(c)
+            cuts.append([end, status != "separate", status is not None])
+        cuts.sort(key=lambda c: c[0])
+        members = []                              # each cut, then the stretch to the next, in time order
+        for k, (x, touched, proven) in enumerate(cuts):
+            members.append((float(x), float(x), touched, proven))
+            if k + 1 < len(cuts):
+                status = _stretch_status(model_a, model_b, MA, MB, x, cuts[k + 1][0])
+                members.append((float(x), float(cuts[k + 1][0]), status != "separate", status is not None))
+        # a time whose touch is unproven matters only where it would stand alone: beside a stretch in contact it
+        # is that stretch's end (or inside it) either way
+        for k, (lo, hi, touched, proven) in enumerate(members):
+            if proven:
+                continue
+            if lo == hi and any(members[j][2] and members[j][3] for j in (k - 1, k + 1) if 0 <= j < len(members)):
+                continue
+            certified = False
+    members = [m[:3] for m in members]
+    intervals = []
+    for lo, hi, touched in members:
+        if not touched:
+            continue
+        if intervals and lo <= intervals[-1][1]:
+            intervals[-1] = (intervals[-1][0], max(intervals[-1][1], hi))
+        else:
+            intervals.append((lo, hi))
+    return intervals, certified

@@ -79,8 +79,8 @@ def motion_rows(motion, field="motion"):
         return np.array([_element_rows(e) for e in motion.elements])
     if isinstance(motion, (Rational, LinearAffine)):
         raise InputError(f"{field}: the compiled geom solvers take Static, Rigid and Chain motions; a "
-                         f"{type(motion).__name__} motion's first contact comes from geom_first_contact (the "
-                         f"composite quadric solver), its intervals from none")
+                         f"{type(motion).__name__} motion goes to geom_first_contact and geom_collision_intervals "
+                         f"(the composite quadric solver)")
     if isinstance(motion, Motion):
         raise InputError(f"{field}: a {type(motion).__name__} motion does not keep MuJoCo's shapes rigid; "
                          f"the geom solvers take Static, Rigid and Chain motions")
@@ -242,9 +242,10 @@ def _kernel_contact(out, ka, kb):
                    elements=elements)
 
 
-def _composite_first_contact(shape_a, motion_a, shape_b, motion_b, t_max):
-    """A pair under a :class:`mjccd.Rational` or :class:`mjccd.LinearAffine` motion: the shapes as composite
-    quadric models (:mod:`mjccd.geoms.cqm`, exact elimination; seconds, not microseconds)."""
+def _composite_models(shape_a, shape_b):
+    """The two shapes as composite quadric models (:mod:`mjccd.geoms.cqm`), for a pair under a
+    :class:`mjccd.Rational` or :class:`mjccd.LinearAffine` motion (exact elimination; seconds, not
+    microseconds)."""
     from mjccd.geoms import cqm
     models = []
     for shape, field in ((shape_a, "a"), (shape_b, "b")):
@@ -257,7 +258,12 @@ def _composite_first_contact(shape_a, motion_a, shape_b, motion_b, t_max):
                        sy.CYLINDER: lambda: cqm.capped_cylinder(size[0], size[0], size[1]),
                        sy.BOX: lambda: cqm.box(*size),
                        sy.ELLIPSOID: lambda: cqm.ellipsoid_model(*size)}[kind]())
-    return cqm.cqm_first_contact(models[0], motion_a, models[1], motion_b, t_max=t_max)
+    return models
+
+
+def _composite(motion_a, motion_b):
+    """True for a pair the composite quadric solver takes (a Rational or LinearAffine motion)."""
+    return isinstance(motion_a, (Rational, LinearAffine)) or isinstance(motion_b, (Rational, LinearAffine))
 
 
 def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
@@ -272,8 +278,10 @@ def geom_first_contact(shape_a, motion_a, shape_b, motion_b, *, t_max=1.0):
     contact carries the touching ``elements`` of each shape; an uncertain
     answer carries the bracket that holds every possible first contact.
     """
-    if isinstance(motion_a, (Rational, LinearAffine)) or isinstance(motion_b, (Rational, LinearAffine)):
-        return _composite_first_contact(shape_a, motion_a, shape_b, motion_b, t_max)
+    if _composite(motion_a, motion_b):
+        from mjccd.geoms.cqm import cqm_first_contact
+        model_a, model_b = _composite_models(shape_a, shape_b)
+        return cqm_first_contact(model_a, motion_a, model_b, motion_b, t_max=t_max)
     out, (ka, sa, kb, sb) = solve_geoms(shape_a, motion_a, shape_b, motion_b, t_max=t_max)
     if out[kn.FAILED] == 0.0:
         return _kernel_contact(out, ka, kb)
@@ -319,8 +327,14 @@ def geom_collision_intervals(shape_a, motion_a, shape_b, motion_b):
 
     Returns (intervals, certified): a list of (t_in, t_out) and whether
     every end is proven within 1e-9 (otherwise an interval may be a graze
-    that does not happen, or ends may be wider apart).
+    that does not happen, or ends may be wider apart).  Motions as
+    :func:`geom_first_contact` takes them: a Rational or LinearAffine one
+    goes to :func:`mjccd.geoms.cqm.cqm_collision_intervals` (seconds).
     """
+    if _composite(motion_a, motion_b):
+        from mjccd.geoms.cqm import cqm_collision_intervals
+        model_a, model_b = _composite_models(shape_a, shape_b)
+        return cqm_collision_intervals(model_a, motion_a, model_b, motion_b)
     ka, sa, rows_a, kb, sb, rows_b, _ = _rows_and_origin(shape_a, motion_a, shape_b, motion_b)
     out = np.empty((kn.MAX_RUNS, 7))
     count, certified, _, code = kn.pair_runs(ka, sa, rows_a, kb, sb, rows_b, 1.0, *workspaces(), out)

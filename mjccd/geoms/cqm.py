@@ -837,8 +837,8 @@ class _Solver:
         TP = T * Pn
         for g in f.trims:
             if g.is_plane:
-                row = mp.matrix([[mp.mpf(x.numerator) / x.denominator for x in g.form]])
-                if self._beside_line(En, row * TP, TP[3, :]) > 0:
+                trim = mp.matrix([[mp.mpf(x.numerator) / x.denominator for x in g.form]])
+                if self._beside_line(En, trim * TP, TP[3, :]) > 0:
                     return []
                 continue
             G = mp.matrix([[mp.mpf(x.numerator) / x.denominator for x in row] for row in g.form])
@@ -1288,6 +1288,15 @@ def _is_ball(model):
                                                       if i != j)
 
 
+def _motion_matrices(model_a, motion_a, model_b, motion_b):
+    """The two motions' matrices (:func:`motion_matrix`) for two checked models."""
+    for m, field in ((model_a, "model_a"), (model_b, "model_b")):
+        if not isinstance(m, CompositeQuadric):
+            raise InputTypeError(f"{field}: expected a CompositeQuadric, got {type(m).__name__}")
+    return (motion_matrix(motion_a, "motion_a", not _is_ball(model_a)),
+            motion_matrix(motion_b, "motion_b", not _is_ball(model_b)))
+
+
 def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
     """First time in [0, t_max] at which two moving composite quadric models touch, as a :class:`mjccd.Contact`
     (None: proven free of contact).
@@ -1297,14 +1306,10 @@ def cqm_first_contact(model_a, motion_a, model_b, motion_b, *, t_max=1.0):
     in the world; its normal is None (an edge or vertex contact has no single one).  ``uncertain``: a test that
     60 digits could not decide came first, and ``bracket`` holds every possible first contact.
     """
-    for m, field in ((model_a, "model_a"), (model_b, "model_b")):
-        if not isinstance(m, CompositeQuadric):
-            raise InputTypeError(f"{field}: expected a CompositeQuadric, got {type(m).__name__}")
+    MA, MB = _motion_matrices(model_a, motion_a, model_b, motion_b)
     t_max = float(t_max)
     if not 0.0 < t_max <= 1.0:
         raise InputError(f"t_max: must be in (0, 1], got {t_max}")
-    MA = motion_matrix(motion_a, "motion_a", not _is_ball(model_a))
-    MB = motion_matrix(motion_b, "motion_b", not _is_ball(model_b))
     status = _status_at(model_a, model_b, MA, MB)
     if status not in ("separate", None):
         return Contact(0.0, None, None, status)
@@ -1344,12 +1349,8 @@ def cqm_collision_intervals(model_a, motion_a, model_b, motion_b):
     status that 60 digits leave undecided makes the answer uncertain: its stretch is then counted as touching,
     so that the intervals hold every possible contact.
     """
-    for m, field in ((model_a, "model_a"), (model_b, "model_b")):
-        if not isinstance(m, CompositeQuadric):
-            raise InputTypeError(f"{field}: expected a CompositeQuadric, got {type(m).__name__}")
+    MA, MB = _motion_matrices(model_a, motion_a, model_b, motion_b)
     sp, mp = _sympy()
-    MA = motion_matrix(motion_a, "motion_a", not _is_ball(model_a))
-    MB = motion_matrix(motion_b, "motion_b", not _is_ball(model_b))
     touches, undecided, throughout = _Solver(model_a, model_b, MA, MB).events(1.0)
     if throughout:
         return [(0.0, 1.0)], False
@@ -1387,9 +1388,8 @@ def cqm_collision_intervals(model_a, motion_a, model_b, motion_b):
             if lo == hi and any(members[j][2] and members[j][3] for j in (k - 1, k + 1) if 0 <= j < len(members)):
                 continue
             certified = False
-    members = [m[:3] for m in members]
     intervals = []
-    for lo, hi, touched in members:
+    for lo, hi, touched, _ in members:
         if not touched:
             continue
         if intervals and lo <= intervals[-1][1]:

@@ -69,12 +69,21 @@ def _element_rows(element):
     raise InputTypeError(f"not a chain element: {element!r}")
 
 
+def _two_poses(motion):
+    """(p0, q0, p1, q1) of a Static or Rigid motion (validated when it was made); None for any other."""
+    kind = type(motion)
+    if kind is Rigid:
+        return motion.position0, motion.quaternion0, motion.position1, motion.quaternion1
+    if kind is Static:
+        return motion.position, motion.quaternion, motion.position, motion.quaternion
+    return None
+
+
 def motion_rows(motion, field="motion"):
     """The element rows of a motion the geom solvers take: Static, Rigid or Chain."""
-    if type(motion) is Static:
-        return _pose_row(motion.position, motion.quaternion, motion.position, motion.quaternion)[None, :]
-    if type(motion) is Rigid:
-        return _pose_row(motion.position0, motion.quaternion0, motion.position1, motion.quaternion1)[None, :]
+    poses = _two_poses(motion)
+    if poses is not None:
+        return _pose_row(*poses)[None, :]
     if type(motion) is Chain:
         return np.array([_element_rows(e) for e in motion.elements])
     if isinstance(motion, (Rational, LinearAffine)):
@@ -176,16 +185,6 @@ def _earliest(contacts):
     if all(c.certainty == "certified" or c.bracket[0] >= first.time for c in found) and first.certainty == "certified":
         return first
     return first._replace(time=lo, certainty="uncertain", bracket=(lo, hi))
-
-
-def _two_poses(motion):
-    """(p0, q0, p1, q1) of a Static or Rigid motion (validated when it was made); None for any other."""
-    kind = type(motion)
-    if kind is Rigid:
-        return motion.position0, motion.quaternion0, motion.position1, motion.quaternion1
-    if kind is Static:
-        return motion.position, motion.quaternion, motion.position, motion.quaternion
-    return None
 
 
 _POSE_KIND = np.array([float(fr.POSE)])

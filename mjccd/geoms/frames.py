@@ -28,7 +28,9 @@ from mjccd.geoms.poly import jit
 ELEMENT_FIELDS = 15
 POSE, HINGE, SLIDE = 0, 1, 2
 FRAME = 26
-L0, V0, M0, G0, H0, GW = 0, 9, 12, 13, 22, 25
+# block offsets in a frame's rows: numpy integers, so that a kernel passed two of them compiles once (see
+# mjccd.geoms.systems)
+L0, V0, M0, G0, H0, GW = (np.int64(k) for k in (0, 9, 12, 13, 22, 25))
 
 
 @jit

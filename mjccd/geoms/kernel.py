@@ -302,7 +302,7 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
             return
         out[FAILED] = PARTIAL if code == sy.PARTIAL else 0.0
         out[TIER] = tier
-        best, s_best = scan_systems(SYS, N, C, DS, DT, errs, t_end, out, True)
+        best, s_best = scan_systems(SYS, N, C, DS, DT, errs, t_end, out, np.bool_(True))
         if out[CERTIFIED] > 0.0 or tier == 1:
             if best >= 0:
                 _contact(Wt, It, SYS, SYSR, best, s_best, out[TIME] if out[CERTIFIED] > 0.0 else out[LO],

@@ -501,7 +501,7 @@ def planar_kernel(MA, DA, ax_a, MB, DB, ax_b, t_end, W, I, Wdd, Idd, CON, SYS, S
             out[kn.FAILED] = kn.OVERFLOW
             return
         out[kn.TIER] = tier
-        best, s_best = kn.scan_systems(SYS, N, C, DS, DT, errs, t_end, out, True)
+        best, s_best = kn.scan_systems(SYS, N, C, DS, DT, errs, t_end, out, np.bool_(True))
         out[S_BEST] = s_best
         out[KIND] = kinds[best] if best >= 0 else -1.0
         if out[kn.CERTIFIED] > 0.0 or tier == 1:

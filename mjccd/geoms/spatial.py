@@ -193,7 +193,7 @@ def spatial_window(HBA, DBA, HAB, DAB, ax_a, ax_b, W, I, CON, SYS, SYSR, N, kind
         out[kn.FAILED] = kn.OVERFLOW
         return
     out[kn.TIER] = 1.0
-    best, _ = kn.scan_systems(SYS, N, C, DS, DT, errs, 1.0, out, False)
+    best, _ = kn.scan_systems(SYS, N, C, DS, DT, errs, 1.0, out, np.bool_(False))
     out[pl.KIND] = kinds[best] if best >= 0 else -1.0
 
 

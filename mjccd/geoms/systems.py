@@ -40,15 +40,20 @@ from mjccd.geoms import frames as fr
 from mjccd.geoms import poly as P
 from mjccd.geoms.poly import jit
 
-SPHERE, CAPSULE, CYLINDER, BOX, ELLIPSOID, PLANE = 0, 1, 2, 3, 4, 5
+# The codes below are numpy integers, not Python ones: numba types a Python int constant passed to a kernel as a
+# literal and compiles that kernel again for each value it is passed, a numpy integer once (first use's compile)
+SPHERE, CAPSULE, CYLINDER, BOX, ELLIPSOID, PLANE = (np.int64(k) for k in range(6))
 KIND_NAMES = ("sphere", "capsule", "cylinder", "box", "ellipsoid", "plane")
 
-NONE, BALL, AXCYL, ELLIPSOIDAL = 0, 1, 2, 3  # quadric of a piece
+NONE, BALL, AXCYL, ELLIPSOIDAL = (np.int64(k) for k in range(4))  # quadric of a piece
 QPRM = 7                                      # its parameters: axis, centre (3), radius terms (3)
 LIN = 6                                       # a linear constraint a . x <= c1 + c2 + c3
 MAXLIN = 6
 SYS_FIELDS = 28
 WIT = 8                                       # first witness slot column of SYS: 4 coordinates x 5 rows
+IN_A, IN_B = np.int64(0), np.int64(1)         # a system's side: its witness in A's frame (A the solid it meets)
+Z_AXIS = np.int64(2)                          # a local axis: z, that of capsules and cylinders
+MAX_PIECES = np.int64(27)                     # the convex pieces of an inflated solid, at most
 
 # ---------------------------------------------------------------- the system store
 
@@ -248,7 +253,7 @@ def _bound(PL, PN, k, i, sign, c1, c2, c3):
 def solid_pieces(kind, size, R1, R2):
     """The convex pieces whose union is the shape ``kind`` (core for a sphere or capsule) inflated by
     R1 + R2; tori are not pieces (a rounded cylinder's rims are handled apart)."""
-    PQ, PP, PL, PN, cnt = new_pieces(27)
+    PQ, PP, PL, PN, cnt = new_pieces(MAX_PIECES)
     if kind == SPHERE:
         _piece(PQ, PP, PL, PN, cnt, BALL, 0.0, 0.0, 0.0, 0.0, R1, R2, 0.0)
     elif kind == CAPSULE:
@@ -256,8 +261,8 @@ def solid_pieces(kind, size, R1, R2):
         _piece(PQ, PP, PL, PN, cnt, BALL, 0.0, 0.0, 0.0, h, R1, R2, 0.0)
         _piece(PQ, PP, PL, PN, cnt, BALL, 0.0, 0.0, 0.0, -h, R1, R2, 0.0)
         k = _piece(PQ, PP, PL, PN, cnt, AXCYL, 2.0, 0.0, 0.0, 0.0, R1, R2, 0.0)
-        _bound(PL, PN, k, 2, 1.0, h, 0.0, 0.0)
-        _bound(PL, PN, k, 2, -1.0, h, 0.0, 0.0)
+        _bound(PL, PN, k, Z_AXIS, 1.0, h, 0.0, 0.0)
+        _bound(PL, PN, k, Z_AXIS, -1.0, h, 0.0, 0.0)
     elif kind == BOX:
         for i in range(3):  # a slab: the box grown along axis i
             k = _piece(PQ, PP, PL, PN, cnt, NONE, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -287,15 +292,15 @@ def solid_pieces(kind, size, R1, R2):
     elif kind == CYLINDER:
         r, h = size[0], size[1]
         k = _piece(PQ, PP, PL, PN, cnt, AXCYL, 2.0, 0.0, 0.0, 0.0, r, 0.0, 0.0)  # grown along the axis
-        _bound(PL, PN, k, 2, 1.0, h, R1, R2)
-        _bound(PL, PN, k, 2, -1.0, h, R1, R2)
+        _bound(PL, PN, k, Z_AXIS, 1.0, h, R1, R2)
+        _bound(PL, PN, k, Z_AXIS, -1.0, h, R1, R2)
         if R1 != 0.0 or R2 != 0.0:
             k = _piece(PQ, PP, PL, PN, cnt, AXCYL, 2.0, 0.0, 0.0, 0.0, r, R1, R2)  # grown sideways
-            _bound(PL, PN, k, 2, 1.0, h, 0.0, 0.0)
-            _bound(PL, PN, k, 2, -1.0, h, 0.0, 0.0)
+            _bound(PL, PN, k, Z_AXIS, 1.0, h, 0.0, 0.0)
+            _bound(PL, PN, k, Z_AXIS, -1.0, h, 0.0, 0.0)
     elif kind == PLANE:
         k = _piece(PQ, PP, PL, PN, cnt, NONE, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        _bound(PL, PN, k, 2, 1.0, R1, R2, 0.0)
+        _bound(PL, PN, k, Z_AXIS, 1.0, R1, R2, 0.0)
     elif kind == ELLIPSOID:
         k = _piece(PQ, PP, PL, PN, cnt, ELLIPSOIDAL, 0.0, size[0], size[1], size[2], 0.0, 0.0, 0.0)
     return PQ, PP, PL, PN, cnt[0]
@@ -539,7 +544,7 @@ def _box_edges_in(W, I, CON, SYS, SYSR, N, vb, H, bsize, kind, size, side):
                 continue
             for k in range(npc):
                 segment_in_piece(W, I, CON, SYS, SYSR, N, vb[v], vb[v | bit], dv, PQ[k], PP[k], PL[k], PN[k],
-                                 side, 0.0, False, True)
+                                 side, 0.0, np.bool_(False), np.bool_(True))
 
 
 HANDLED, PARTIAL = 1, 2  # build_pair's answers besides 0 (the pair is the ellipsoid solver's)
@@ -552,16 +557,16 @@ def _rounded_into(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     pts = _core_points(W, I, kb, sb, HAB)
     ra = sa[0] if rounded(ka) else 0.0
     rb = sb[0]
-    _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, rb, ra, 0, rb)
+    _points_in_solid(W, I, CON, SYS, SYSR, N, pts, ka, sa, rb, ra, IN_A, rb)
     # a plane's inflated half-space is convex and a segment's height above it linear along the segment: where
     # some point of the segment lies in it, an end does, so the ends' systems hold first and the segment's
     # (bivariate, far dearer) adds nothing
     if kb == CAPSULE and ka != PLANE:
         dv = fr.direction(W, I, HAB, 0.0, 0.0, 2.0 * sb[1])
-        _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], dv, ka, sa, rb, ra, 0, rb, False, True)
+        _segment_in_solid(W, I, CON, SYS, SYSR, N, pts[0], pts[1], dv, ka, sa, rb, ra, IN_A, rb, np.bool_(False), np.bool_(True))
         if ka == CYLINDER:
             for zc in (sa[1], -sa[1]):
-                segment_in_torus(W, I, CON, SYS, SYSR, N, pts[0], pts[1], sa[0], zc, rb, 0.0, 0, rb)
+                segment_in_torus(W, I, CON, SYS, SYSR, N, pts[0], pts[1], sa[0], zc, rb, 0.0, IN_A, rb)
     return HANDLED
 
 
@@ -575,14 +580,14 @@ def _capsules(W, I, CON, SYS, SYSR, N, sa, FA, sb, FB):
     ra, rb = sa[0], sb[0]
     HAB = fr.relative(W, I, FA, FB)
     HBA = fr.relative(W, I, FB, FA)
-    _points_in_solid(W, I, CON, SYS, SYSR, N, _core_points(W, I, CAPSULE, sb, HAB), CAPSULE, sa, rb, ra, 0, rb)
+    _points_in_solid(W, I, CON, SYS, SYSR, N, _core_points(W, I, CAPSULE, sb, HAB), CAPSULE, sa, rb, ra, IN_A, rb)
     PQ, PP, PL, PN, npc = solid_pieces(CAPSULE, sb, ra, rb)
     ends = _core_points(W, I, CAPSULE, sa, HBA)
     for m in range(2):
         for k in range(npc):
             if PQ[k] == AXCYL:
-                point_in_piece(W, I, CON, SYS, SYSR, N, ends[m], PQ[k], PP[k], PL[k], PN[k], 1, ra)
-    axis_lines(W, I, CON, SYS, SYSR, N, HAB, ra, sa[1], rb, sb[1], 0)
+                point_in_piece(W, I, CON, SYS, SYSR, N, ends[m], PQ[k], PP[k], PL[k], PN[k], IN_B, ra)
+    axis_lines(W, I, CON, SYS, SYSR, N, HAB, ra, sa[1], rb, sb[1], IN_A)
     return HANDLED
 
 
@@ -597,22 +602,22 @@ def _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB):
     if ka == CAPSULE:
         # the capsule's cylinder part; its end balls are the ellipsoid solver's
         piece = np.array([sa[0], sa[1], 0.0])
-        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], 1)
-        _points_in_solid(W, I, CON, SYS, SYSR, N, c1, CYLINDER, piece, 0.0, 0.0, 0, 0.0)
+        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], IN_B)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, c1, CYLINDER, piece, 0.0, 0.0, IN_A, 0.0)
         return PARTIAL
     if ka == CYLINDER:
-        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], ELLIPSOID, sb, 1)
+        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], ELLIPSOID, sb, IN_B)
         for sign in (1.0, -1.0):
-            face_section(W, I, CON, SYS, SYSR, N, HBA, sb, 2, sign, sa[1], sa, True, 0)
-        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], 1)
+            face_section(W, I, CON, SYS, SYSR, N, HBA, sb, Z_AXIS, sign, sa[1], sa, np.bool_(True), IN_A)
+        lateral_shadow(W, I, CON, SYS, SYSR, N, HBA, sb, sa[0], sa[1], IN_B)
     else:  # a box
         vb = _box_vertices(W, I, sa, HBA)
-        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 0.0, 0.0, 1, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HBA, sa, ELLIPSOID, sb, 1)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, ELLIPSOID, sb, 0.0, 0.0, IN_B, 0.0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HBA, sa, ELLIPSOID, sb, IN_B)
         for axis in range(3):
             for sign in (1.0, -1.0):
-                face_section(W, I, CON, SYS, SYSR, N, HBA, sb, axis, sign, sa[axis], sa, False, 0)
-    _points_in_solid(W, I, CON, SYS, SYSR, N, c1, ka, sa, 0.0, 0.0, 0, 0.0)
+                face_section(W, I, CON, SYS, SYSR, N, HBA, sb, axis, sign, sa[axis], sa, np.bool_(False), IN_A)
+    _points_in_solid(W, I, CON, SYS, SYSR, N, c1, ka, sa, 0.0, 0.0, IN_A, 0.0)
     return HANDLED
 
 
@@ -639,9 +644,9 @@ def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     if kb == PLANE:
         HBA = fr.relative(W, I, FB, FA)  # A into the plane's frame
         if ka == BOX:
-            _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), PLANE, sb, 0.0, 0.0, 1, 0.0)
+            _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), PLANE, sb, 0.0, 0.0, IN_B, 0.0)
         else:
-            _plane_rims(W, I, CON, SYS, SYSR, N, sa, HBA, 1)
+            _plane_rims(W, I, CON, SYS, SYSR, N, sa, HBA, IN_B)
         return HANDLED
     if kb == ELLIPSOID:
         return _against_ellipsoid(W, I, CON, SYS, SYSR, N, ka, sa, FA, sb, FB)
@@ -649,20 +654,20 @@ def build_pair(W, I, CON, SYS, SYSR, N, ka, sa, FA, kb, sb, FB):
     HBA = fr.relative(W, I, FB, FA)
     if ka == BOX:  # box and box
         vb = _box_vertices(W, I, sb, HAB)
-        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0.0, 0.0, 0, 0.0)
-        _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), BOX, sb, 0.0, 0.0, 1, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, BOX, sa, 0)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, BOX, sa, 0.0, 0.0, IN_A, 0.0)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, _box_vertices(W, I, sa, HBA), BOX, sb, 0.0, 0.0, IN_B, 0.0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, BOX, sa, IN_A)
         return HANDLED
     if kb == BOX:  # cylinder and box
         vb = _box_vertices(W, I, sb, HAB)
-        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0.0, 0.0, 0, 0.0)
-        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, CYLINDER, sa, 0)
-        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], BOX, sb, 1)
+        _points_in_solid(W, I, CON, SYS, SYSR, N, vb, CYLINDER, sa, 0.0, 0.0, IN_A, 0.0)
+        _box_edges_in(W, I, CON, SYS, SYSR, N, vb, HAB, sb, CYLINDER, sa, IN_A)
+        _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], BOX, sb, IN_B)
         return HANDLED
     # cylinder and cylinder
-    _circles_in_solid(W, I, CON, SYS, SYSR, N, HAB, sb[0], sb[1], CYLINDER, sa, 0)
-    _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], CYLINDER, sb, 1)
-    axis_lines(W, I, CON, SYS, SYSR, N, HAB, sa[0], sa[1], sb[0], sb[1], 0)
+    _circles_in_solid(W, I, CON, SYS, SYSR, N, HAB, sb[0], sb[1], CYLINDER, sa, IN_A)
+    _circles_in_solid(W, I, CON, SYS, SYSR, N, HBA, sa[0], sa[1], CYLINDER, sb, IN_B)
+    axis_lines(W, I, CON, SYS, SYSR, N, HAB, sa[0], sa[1], sb[0], sb[1], IN_A)
     return HANDLED
 
 
@@ -800,7 +805,7 @@ def segment_in_torus(W, I, CON, SYS, SYSR, N, p0, p1, rc, zc, R1, R2, side, r_w)
     for c in range(4):
         rows[c, 0], rows[c, 1] = p0[c], p1[c]
     x, y = rows[0], rows[1]
-    z = _bcoord(W, I, rows, 2, zc)
+    z = _bcoord(W, I, rows, Z_AXIS, zc)
     rho2 = P.badd(W, I, P.bmul(W, I, x, x), P.bmul(W, I, y, y), 1.0)
     wr = np.empty(2, dtype=np.int64)
     wR = np.empty(2, dtype=np.int64)

@@ -6,9 +6,9 @@ every value: the README's first ``first_contact`` compiled 93 kernels where 79 d
 ``np.intp(0)`` or ``np.bool_(False)``, and the one-line helpers that take literals are typed inside their
 callers (docs/benchmarks.md, "First use").
 
-The geom solver's kernels take the shape codes, a system's side and a frame's block offsets as numpy integers
-(``mjccd.geoms.systems``, ``mjccd.geoms.frames``) for the same reason: passed as Python ints they compiled
-175 kernels for the first geoms-mode step where 144 do.
+The geom solver's kernels take the shape codes, a system's side, a local axis and a frame's block offsets as
+numpy integers (``mjccd.geoms.systems``, ``mjccd.geoms.frames``), and its flags as ``np.bool_``, for the same
+reason: passed as Python constants they compiled 175 kernels for the first geoms-mode step where 143 do.
 
 Each check compiles its solver in a fresh process with an empty numba cache: a kernel loaded from
 the cache carries its callees inside, so their dispatchers would never show what they compiled.

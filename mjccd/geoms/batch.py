@@ -9,7 +9,12 @@ Two filters clear a pair without a solve; both are proven, never guesses:
 * *moving spheres*: a geom stays inside the sphere of radius ``rho`` (its
   reach from its centre) about its centre, which moves along a straight line;
   when the two centres' lines stay further apart than the sum of the radii,
-  the pair cannot touch;
+  the pair cannot touch.  Its cheaper first form, one test per pair on balls
+  computed once per geom and step: the whole step's sweep of a geom lies in
+  the ball about its centre's path's middle of radius ``rho`` plus half the
+  path; two such balls apart by a relative 1e-6 clear the pair (the
+  centres' lines are then at least that far apart as well, so the full test
+  would clear it too: the answers are the same);
 * *distance against displacement*: every point of a geom moves by at most
   ``M = |c1 - c0| + 2 sin(theta / 2) rho`` in the step (theta its turn); a
   geom lies inside a *proxy* capsule (a capsule, a cylinder or a box about
@@ -200,6 +205,35 @@ def clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
     return _pieces_clear(kinds, sizes, Q0, Q1, pa, pb, scratch)
 
 
+SWEEP_MARGIN = 1e-6  # relative margin of the swept balls' test: far above its rounding and MARGIN's
+
+
+@jit
+def swept_balls(kinds, sizes, Q0, Q1, balls):
+    """balls (G, 4) = each geom's swept ball of the step (module docstring): centre (3) and radius; a plane's
+    radius is infinite (never cleared this way)."""
+    for g in range(Q0.shape[0]):
+        dx, dy, dz = Q1[g, 0] - Q0[g, 0], Q1[g, 1] - Q0[g, 1], Q1[g, 2] - Q0[g, 2]
+        balls[g, 0] = Q0[g, 0] + 0.5 * dx
+        balls[g, 1] = Q0[g, 1] + 0.5 * dy
+        balls[g, 2] = Q0[g, 2] + 0.5 * dz
+        if kinds[g] == sy.PLANE:
+            balls[g, 3] = np.inf
+        else:
+            balls[g, 3] = 0.5 * math.sqrt(dx * dx + dy * dy + dz * dz) + proxy(kinds[g], sizes[g])[3]
+
+
+@jit
+def balls_apart(balls, ga, gb):
+    """True when the swept balls of geoms ga and gb lie apart by more than SWEEP_MARGIN (relative to their
+    radii and their centres' coordinates): the pair cannot touch in the step."""
+    dx, dy, dz = balls[ga, 0] - balls[gb, 0], balls[ga, 1] - balls[gb, 1], balls[ga, 2] - balls[gb, 2]
+    scale = (abs(balls[ga, 0]) + abs(balls[ga, 1]) + abs(balls[ga, 2]) + abs(balls[gb, 0]) + abs(balls[gb, 1])
+             + abs(balls[gb, 2]))
+    reach = (balls[ga, 3] + balls[gb, 3]) * (1.0 + SWEEP_MARGIN) + SWEEP_MARGIN * scale
+    return dx * dx + dy * dy + dz * dz > reach * reach
+
+
 @jit
 def _lerp_pose(Q0, Q1, g, t, out):
     """out (7,) = geom g's pose at t of its rigid lerp: centre lerp, quaternion lerp the short way, normalised."""
@@ -376,11 +410,13 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
     rows_a = np.zeros((1, fr.ELEMENT_FIELDS))
     rows_b = np.zeros((1, fr.ELEMENT_FIELDS))
     scratch = np.empty((SCRATCH_ROWS, 7))
+    balls = np.empty((Q0.shape[0], 4))
+    swept_balls(kinds, sizes, Q0, Q1, balls)
     best, best_t = -1, t_max
     for k in range(pairs.shape[0]):
         ga, gb = pairs[k, 0], pairs[k, 1]
         o = out[k]
-        if clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
+        if balls_apart(balls, ga, gb) or clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
             _cleared(o, FILTERED)
             continue
         if min_motion[k] > 0.0 and relative_motion(kinds, sizes, Q0, Q1, ga, gb) < min_motion[k]:

@@ -12,6 +12,7 @@ import numpy as np
 
 from mjccd.geoms import contact as ct
 from mjccd.geoms import frames as fr
+from mjccd.geoms import on_plane as op
 from mjccd.geoms import poly as P
 from mjccd.geoms import scan as sc
 from mjccd.geoms import systems as sy
@@ -274,6 +275,39 @@ def _bstatus_at_start(C, DS, DT, errs):
 
 
 @jit
+def _clear(out):
+    """An answer with nothing found yet."""
+    for i in range(OUT):
+        out[i] = 0.0
+    out[LO] = out[HI] = out[TIME] = -1.0
+
+
+@jit
+def _on_plane(ka, sa, rows_a, kb, sb, rows_b, t_end, out):
+    """A sphere or capsule against a static plane by :mod:`mjccd.geoms.on_plane`'s written-out systems, scanned
+    as the general ones: True when that certifies the answer (in out), False to take the general path."""
+    C = np.zeros((2, 1, 4))
+    DS = np.zeros(2, dtype=np.int64)
+    DT = np.zeros(2, dtype=np.int64)
+    errs = np.zeros(2)
+    SYS = np.zeros((2, sy.SYS_FIELDS), dtype=np.int64)
+    N = np.zeros(3, dtype=np.int64)
+    ends = np.zeros(2)
+    op.systems(ka, sa, rows_a, kb, sb, rows_b, C, DT, errs, SYS, N, ends)
+    best, _ = scan_systems(SYS, N, C, DS, DT, errs, t_end, out, np.bool_(True))
+    if out[CERTIFIED] == 0.0:
+        return False
+    if best >= 0:
+        x, n, ca, cb = op.contact(ka, sa, rows_a, kb, sb, rows_b, ends[best], out[TIME])
+        for i in range(3):
+            out[POINT + i] = x[i]
+            out[NORMAL + i] = n[i]
+        out[ELEM_A] = ca
+        out[ELEM_B] = cb
+    return True
+
+
+@jit
 def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
     """First contact over [0, t_end] of shape ka (size sa (3,), motion rows_a (n, ELEMENT_FIELDS)) and shape kb.
 
@@ -290,10 +324,20 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
     [FAILED] 0, or NOT_HANDLED (a pair for another solver), OVERFLOW (a
     workspace too small), PARTIAL (the ellipsoid solver adds systems);
     [TIER] 0 when doubles sufficed, 1 when double-double was needed.
+    A sphere or capsule against a static plane is first tried by
+    :mod:`mjccd.geoms.on_plane` (no workspace), the general path taken
+    when that leaves it uncertain.
     """
-    for i in range(OUT):
-        out[i] = 0.0
-    out[LO] = out[HI] = out[TIME] = -1.0
+    _clear(out)
+    if op.applies(ka, sa, rows_a, kb, sb, rows_b) and _on_plane(ka, sa, rows_a, kb, sb, rows_b, t_end, out):
+        return
+    general_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out)
+
+
+@jit
+def general_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out):
+    """:func:`pair_kernel` by the general path alone: every system built in the workspaces."""
+    _clear(out)
     for tier in range(2):
         Wt, It = (W, I) if tier == 0 else (Wdd, Idd)
         FA, FB, C, DS, DT, errs, code = _systems_of(Wt, It, CON, SYS, SYSR, N, ka, sa, rows_a, kb, sb, rows_b)

@@ -194,6 +194,39 @@ def test_the_filters_never_change_an_answer():
     assert culled > 1000 and contacts > 20, (culled, contacts)
 
 
+def test_swept_balls_clear_only_pairs_the_moving_sphere_test_clears():
+    """The filters' cheap first test (mjccd.geoms.batch.balls_apart) on random shapes and steps, near and far:
+    a pair it clears is cleared by the full filters too, and its centres' paths stay further apart than the
+    reaches at every sampled time (so the answers cannot change)."""
+    from mjccd.geoms import batch as gb
+
+    rng = np.random.default_rng(7)
+    G = 40
+    kinds = rng.integers(0, 5, G).astype(np.int64)
+    sizes = rng.uniform(0.02, 0.3, (G, 3))
+    Q0, Q1 = np.empty((G, 7)), np.empty((G, 7))
+    for Q in (Q0, Q1):
+        Q[:, :3] = rng.uniform(-1.0, 1.0, (G, 3))
+        Q[:, 3:] = rng.normal(size=(G, 4))
+        Q[:, 3:] /= np.linalg.norm(Q[:, 3:], axis=1)[:, None]
+    Q1[:, :3] = Q0[:, :3] + rng.normal(0.0, 0.2, (G, 3))
+    balls = np.empty((G, 4))
+    gb.swept_balls(kinds, sizes, Q0, Q1, balls)
+    scratch = np.empty((gb.SCRATCH_ROWS, 7))
+    apart = 0
+    for ga in range(G):
+        for gb_ in range(ga + 1, G):
+            if not gb.balls_apart(balls, ga, gb_):
+                continue
+            apart += 1
+            assert gb.clear(kinds, sizes, Q0, Q1, ga, gb_, scratch), (ga, gb_)
+            reach = gb.proxy(kinds[ga], sizes[ga])[3] + gb.proxy(kinds[gb_], sizes[gb_])[3]
+            for t in np.linspace(0.0, 1.0, 11):
+                d = (1 - t) * (Q0[ga, :3] - Q0[gb_, :3]) + t * (Q1[ga, :3] - Q1[gb_, :3])
+                assert np.linalg.norm(d) > reach, (ga, gb_, t)
+    assert 100 < apart < G * (G - 1) // 2
+
+
 def test_a_ball_tangent_to_the_floor_is_touching_in_either_mode_never_a_new_contact():
     """dm-control's reacher keeps its finger sphere exactly on the floor: with no gravity the ball below stays
     tangent.  Every step reports it touching at the start (one status, certified), in geoms mode and in

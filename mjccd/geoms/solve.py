@@ -197,14 +197,21 @@ def _pose_rows_from(poses, origin):
     return np.concatenate((_POSE_KIND, p0 - origin, q0, p1 - origin, q1))[None, :]
 
 
+def _static_unless_body(kind, motion):
+    """True for a body, or a plane under a Static motion (a plane's other motions are checked the long way)."""
+    return kind != sy.PLANE or type(motion) is Static
+
+
 def _rows_and_origin(shape_a, motion_a, shape_b, motion_b):
     """(ka, sa, rows_a, kb, sb, rows_b, origin) of a pair: both motions' element rows seen from ``origin`` (the
-    start of the first body that is not a plane), every field validated."""
+    start of the first body that is not a plane), every field validated.  Two Static or Rigid motions (a plane
+    Static) take the short way, one row each."""
     ka, sa = kind_and_size(shape_a, "a.shape")
     kb, sb = kind_and_size(shape_b, "b.shape")
     poses_a, poses_b = _two_poses(motion_a), _two_poses(motion_b)
-    if poses_a is not None and poses_b is not None and ka != sy.PLANE and kb != sy.PLANE:
-        origin = poses_a[0]
+    if poses_a is not None and poses_b is not None and _static_unless_body(ka, motion_a) and \
+            _static_unless_body(kb, motion_b) and not ka == kb == sy.PLANE:
+        origin = poses_b[0] if ka == sy.PLANE else poses_a[0]
         return ka, sa, _pose_rows_from(poses_a, origin), kb, sb, _pose_rows_from(poses_b, origin), origin
     ka, sa, ra = _check(shape_a, motion_a, "a")
     kb, sb, rb = _check(shape_b, motion_b, "b")

@@ -340,3 +340,31 @@ def test_the_contact_point_lies_on_both_surfaces():
             assert abs(local_sdf(_prepared(shape), local)) <= 1e-7, (n, shape, c)
         checked += 1
     assert checked >= 200
+
+
+@pytest.mark.parametrize("slots, degree", [(24, 96), (16384, 3)])
+def test_a_workspace_too_small_is_an_overflow_never_an_answer(slots, degree):
+    """A capsule against a box in a workspace with too few slots, or too low a degree: the kernel answers
+    OVERFLOW (the Python API raises naming the workspace), and a workspace of the usual size afterwards still
+    gives the usual answer."""
+    from mjccd.geoms import frames as fr
+    from mjccd.geoms import kernel as kn
+    from mjccd.geoms import poly as P
+    from mjccd.geoms import systems as sy
+
+    def rows(p0, p1, q1):
+        r = np.zeros((1, fr.ELEMENT_FIELDS))
+        r[0, 0] = fr.POSE
+        r[0, 1:4], r[0, 4:8], r[0, 8:11], r[0, 11:15] = p0, IDENTITY, p1, q1
+        return r
+
+    ra = rows([-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.98, 0.0, 0.2, 0.0])
+    rb = rows([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], IDENTITY)
+    args = (sy.CAPSULE, np.array([0.1, 0.3, 0.0]), ra, sy.BOX, np.array([0.2, 0.2, 0.2]), rb, 1.0)
+    small = (*P.workspace(slots, degree), *P.workspace(slots, degree, True), *sy.new_store(1024, 8192))
+    out = np.zeros(kn.OUT)
+    kn.pair_kernel(*args, *small, out)
+    assert out[kn.FAILED] == kn.OVERFLOW
+    from mjccd.geoms.solve import workspaces
+    kn.pair_kernel(*args, *workspaces(), out)
+    assert out[kn.FAILED] == 0.0 and out[kn.CERTIFIED] == 1.0 and 0.0 < out[kn.TIME] < 1.0

@@ -138,12 +138,14 @@ def alloc(W, I, degree):
     """A new slot of the given degree (arrays uninitialised); slot 0 (the scratch) when the arena is full or
     the degree too high, which marks the workspace as failed."""
     k = I[-1, 0]
-    if k >= W.shape[0] or degree >= W.shape[2]:
-        I[-1, 1] = 1
-        return 0
-    I[-1, 0] = k + 1
-    I[k, 0] = degree
-    return k
+    ok = (k < W.shape[0]) & (degree < W.shape[2])
+    # selects, no branch: numba keeps the reference counting of W and I it adds around array work in a branch,
+    # which cost each operation more than its arithmetic
+    slot = k if ok else 0
+    I[-1, 1] = I[-1, 1] | (0 if ok else 1)
+    I[-1, 0] = k + (1 if ok else 0)
+    I[slot, 0] = degree if ok else 0
+    return slot
 
 
 @jit
@@ -214,8 +216,6 @@ def add(W, I, a, b, sb):
     ma, mb = I[a, 0], I[b, 0]
     n = max(ma, mb)
     k = alloc(W, I, n)
-    if k == 0:
-        return 0
     if ma < n:
         _elevate_into(W, a, ma, n, 0)
         a = 0
@@ -248,8 +248,6 @@ def scale(W, I, a, s):
     """s * a for an exact double s."""
     n = I[a, 0]
     k = alloc(W, I, n)
-    if k == 0:
-        return 0
     exact = s == 1.0 or s == -1.0
     u = _unit(W)
     for i in range(n + 1):
@@ -269,8 +267,6 @@ def frac(W, I, a, num, den):
     """a * num / den for exact doubles num and den (two roundings)."""
     n = I[a, 0]
     k = alloc(W, I, n)
-    if k == 0:
-        return 0
     u = _unit(W)
     for i in range(n + 1):
         if _dd(W):
@@ -288,10 +284,10 @@ def mul(W, I, a, b):
     (a_i C(m, i)) (b_j C(n, j)), three roundings (four where a binomial is itself rounded); the terms of one
     coefficient are summed and divided by C(m + n, q)."""
     m, n = I[a, 0], I[b, 0]
+    k = alloc(W, I, m + n)
+    if k == 0:  # failed (the product's degree may not fit): nothing written, every loop below empty
+        m = n = -1
     d = m + n
-    k = alloc(W, I, d)
-    if k == 0:
-        return 0
     dd = _dd(W)
     u = _unit(W)
     cnt = min(m, n) + 1

@@ -55,7 +55,7 @@ GEOMS = textwrap.dedent("""
     moving = mjccd.Rigid([-1, 0, 0], [1, 0, 0, 0], [1, 0, 0], [0.7071, 0, 0.7071, 0])
     still = mjccd.Static([0, 0.1, 0], [1, 0, 0, 0])
     assert geom_first_contact(Capsule(0.1, 0.3), moving, Box([0.2, 0.1, 0.3]), still) is not None
-    literal_signatures(("mjccd.geoms.systems", "mjccd.geoms.frames", "mjccd.geoms.kernel"))
+    literal_signatures(("mjccd.geoms.systems", "mjccd.geoms.frames", "mjccd.geoms.kernel", "mjccd.geoms.on_plane"))
 """)
 
 

@@ -373,24 +373,25 @@ def cores_overlap(kinds, sizes, Q0, ga, gb):
 
 
 @jit
-def _overlapping(o):
-    """out row o of a pair in contact at the step's start, decided without a solve."""
+def _overlapping(out, k):
+    """out row k of a pair in contact at the step's start, decided without a solve."""
     for f in range(kn.OUT):
-        o[f] = 0.0
-    o[kn.STATUS] = -1.0
-    o[kn.CERTIFIED] = 1.0
-    o[kn.PROVEN] = 1.0
+        out[k, f] = 0.0
+    out[k, kn.STATUS] = -1.0
+    out[k, kn.CERTIFIED] = 1.0
+    out[k, kn.PROVEN] = 1.0
 
 
 @jit
-def _cleared(o, code):
-    """out row o of a pair left without a solve: separate, no contact, out[FAILED] = code."""
+def _cleared(out, k, code):
+    """out row k of a pair left without a solve: separate, no contact, out[FAILED] = code (the row by index: a
+    row view made for each of a step's many cleared pairs costs more than the writes)."""
     for f in range(kn.OUT):
-        o[f] = 0.0
-    o[kn.STATUS] = 1.0
-    o[kn.LO] = o[kn.HI] = o[kn.TIME] = -1.0
-    o[kn.CERTIFIED] = 1.0
-    o[kn.FAILED] = code
+        out[k, f] = 0.0
+    out[k, kn.STATUS] = 1.0
+    out[k, kn.LO] = out[k, kn.HI] = out[k, kn.TIME] = -1.0
+    out[k, kn.CERTIFIED] = 1.0
+    out[k, kn.FAILED] = code
 
 
 @jit
@@ -415,12 +416,11 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
     best, best_t = -1, t_max
     for k in range(pairs.shape[0]):
         ga, gb = pairs[k, 0], pairs[k, 1]
-        o = out[k]
         if balls_apart(balls, ga, gb) or clear(kinds, sizes, Q0, Q1, ga, gb, scratch):
-            _cleared(o, FILTERED)
+            _cleared(out, k, FILTERED)
             continue
         if min_motion[k] > 0.0 and relative_motion(kinds, sizes, Q0, Q1, ga, gb) < min_motion[k]:
-            _cleared(o, TOO_SLOW)
+            _cleared(out, k, TOO_SLOW)
             continue
         if kinds[ga] == sy.PLANE or kinds[gb] == sy.PLANE:
             g, p = (gb, ga) if kinds[ga] == sy.PLANE else (ga, gb)
@@ -428,12 +428,13 @@ def step_pairs(kinds, sizes, Q0, Q1, pairs, min_motion, t_max, all_pairs, new_on
         else:
             sunk = sy.rounded(kinds[ga]) and sy.rounded(kinds[gb]) and cores_overlap(kinds, sizes, Q0, ga, gb)
         if sunk:  # overlapping at the start, no solve
-            _overlapping(o)
+            _overlapping(out, k)
             if new_only:
                 continue
             if best < 0 or 0.0 < best_t:
                 best, best_t = k, 0.0
             continue
+        o = out[k]
         origin = (Q0[ga, :3] if kinds[ga] != sy.PLANE else Q0[gb, :3]).copy()
         _row(Q0, Q1, ga, origin, rows_a)
         _row(Q0, Q1, gb, origin, rows_b)
@@ -475,9 +476,8 @@ def tally(out, new_only, counts):
     for i in range(counts.shape[0]):
         counts[i] = 0
     best, best_t = -1, 0.0
-    for k in range(out.shape[0]):
-        o = out[k]
-        failed = o[kn.FAILED]
+    for k in range(out.shape[0]):  # rows by index: a row view each costs more than the reads
+        failed = out[k, kn.FAILED]
         if failed == FILTERED:
             counts[0] += 1
             continue
@@ -487,18 +487,18 @@ def tally(out, new_only, counts):
         if failed == kn.NOT_HANDLED or failed == kn.PARTIAL or failed == kn.OVERFLOW:
             return NEEDS_SOLVER
         counts[2] += 1
-        if o[kn.STATUS] != 1.0:
+        if out[k, kn.STATUS] != 1.0:
             counts[3] += 1
             if new_only:
                 continue
             t = 0.0
-        elif o[kn.LO] < 0.0:
+        elif out[k, kn.LO] < 0.0:
             continue
         else:
-            certain = o[kn.CERTIFIED] > 0.0
+            certain = out[k, kn.CERTIFIED] > 0.0
             if not certain:
                 counts[5] += 1
-            t = o[kn.TIME] if certain else o[kn.LO]
+            t = out[k, kn.TIME] if certain else out[k, kn.LO]
         counts[4] += 1
         if best < 0 or t < best_t:
             best, best_t = k, t

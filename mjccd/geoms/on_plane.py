@@ -38,6 +38,7 @@ from mjccd.geoms.poly import jit
 # that (and more), which also covers the rounding of the sum of magnitudes it multiplies.
 DEPTH = 32
 SAFE = 1e-40  # every nonzero input lies in [SAFE, 1 / SAFE]: no product of five inputs under- or overflows
+LINEAR, CUBIC = np.int64(1), np.int64(3)  # the constraints' degrees (numpy integers: one compiled _close)
 
 
 @jit
@@ -146,7 +147,7 @@ def systems(ka, sa, rows_a, kb, sb, rows_b, C, DT, errs, SYS, N, ends):
         for e in range(2):
             coef[e], mag[e] = H[e], Hm[e]
         ends[0] = 0.0
-        _close(C, DT, errs, SYS, N, coef, mag, 1, side)
+        _close(C, DT, errs, SYS, N, coef, mag, LINEAR, side)
         return
     q0, q1 = rg[4:8], rg[11:15]
     Q0, Q1, Q2 = 0.0, 0.0, 0.0
@@ -173,7 +174,7 @@ def systems(ka, sa, rows_a, kb, sb, rows_b, C, DT, errs, SYS, N, ends):
         mag[2] = (Q2 * Hm[0] + 2.0 * (Qm1 * Hm[1])) + h * (2.0 * Am[1] + Am[2])
         mag[3] = 3.0 * (Q2 * Hm[1]) + h * (3.0 * Am[2])
         k = N[1]
-        if _close(C, DT, errs, SYS, N, coef, mag, 3, side):
+        if _close(C, DT, errs, SYS, N, coef, mag, CUBIC, side):
             ends[k] = sign * h
 
 

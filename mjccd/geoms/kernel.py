@@ -286,6 +286,7 @@ def _clear(out):
 def _on_plane(ka, sa, rows_a, kb, sb, rows_b, t_end, out):
     """A sphere or capsule against a static plane by :mod:`mjccd.geoms.on_plane`'s written-out systems, scanned
     as the general ones: True when that certifies the answer (in out), False to take the general path."""
+    _clear(out)
     C = np.zeros((2, 1, 4))
     DS = np.zeros(2, dtype=np.int64)
     DT = np.zeros(2, dtype=np.int64)
@@ -328,7 +329,6 @@ def pair_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS,
     :mod:`mjccd.geoms.on_plane` (no workspace), the general path taken
     when that leaves it uncertain.
     """
-    _clear(out)
     if op.applies(ka, sa, rows_a, kb, sb, rows_b) and _on_plane(ka, sa, rows_a, kb, sb, rows_b, t_end, out):
         return
     general_kernel(ka, sa, rows_a, kb, sb, rows_b, t_end, W, I, Wdd, Idd, CON, SYS, SYSR, N, out)

@@ -24,8 +24,6 @@ scanners' own rounding.  :func:`mjccd.geoms.kernel.pair_kernel` scans these
 systems as it scans the general ones, and takes the general path when they
 leave the first contact uncertain.
 """
-import math
-
 import numpy as np
 
 from mjccd.geoms import contact as ct
@@ -33,6 +31,7 @@ from mjccd.geoms import frames as fr
 from mjccd.geoms import poly as P
 from mjccd.geoms import systems as sy
 from mjccd.geoms.poly import jit
+from mjccd.quadric import quat_to_matrix
 
 # A coefficient below takes at most 11 rounded operations on its longest path; the bound uses gamma of twice
 # that (and more), which also covers the rounding of the sum of magnitudes it multiplies.
@@ -102,7 +101,7 @@ def _close(C, DT, errs, SYS, N, coef, mag, n, side):
     for i in range(n + 1):
         e = max(e, P.gamma(DEPTH) * mag[i] * P.UP)
         big = max(big, abs(coef[i]))
-    err = (e + P.gamma(10 * n + 8) * (big + e)) * (1.0 + 1e-9)
+    err = P.scanned_bound(e, big, n)
     positive = True
     for i in range(n + 1):
         if not coef[i] > err:
@@ -179,18 +178,6 @@ def systems(ka, sa, rows_a, kb, sb, rows_b, C, DT, errs, SYS, N, ends):
 
 
 @jit
-def _rotation(q):
-    """The rotation matrix of the quaternion q [w, x, y, z] (normalised here)."""
-    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    w, x, y, z = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-    R = np.empty((3, 3))
-    R[0, 0], R[0, 1], R[0, 2] = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)
-    R[1, 0], R[1, 1], R[1, 2] = 2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)
-    R[2, 0], R[2, 1], R[2, 2] = 2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)
-    return R
-
-
-@jit
 def contact(ka, sa, rows_a, kb, sb, rows_b, end, t):
     """(point (3,), normal (3,) outward from shape a, element code of a, of b) when the core point at local z
     ``end`` touches at time t: the point's foot on the plane, as the general path's witness gives it."""
@@ -201,8 +188,8 @@ def contact(ka, sa, rows_a, kb, sb, rows_b, end, t):
         q[i] = (1.0 - t) * rg[4 + i] + t * rg[11 + i]
     for i in range(3):
         c[i] = (1.0 - t) * rg[1 + i] + t * rg[8 + i]
-    Rg = _rotation(q)
-    Rp = _rotation(rp[4:8])
+    Rg = quat_to_matrix(q)
+    Rp = quat_to_matrix(rp[4:8])
     o = rp[1:4]
     core = c + Rg[:, 2] * end
     y = Rp.T @ (core - o)  # in the plane's frame

@@ -361,6 +361,13 @@ def error(W, I, k):
         c = max(c, abs(_coef(W, k, i)))
     if _dd(W):
         e += EPS * c
+    return scanned_bound(e, c, n)
+
+
+@jit
+def scanned_bound(e, c, n):
+    """The bound of a polynomial of degree n whose coefficients are off by at most e and no larger than c,
+    after the scanners restrict it to a piece or evaluate it (their own rounding: 10 a degree)."""
     return (e + gamma(10 * n + 8) * (c + e)) * (1.0 + 1e-9)
 
 
